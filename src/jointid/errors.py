@@ -1,0 +1,76 @@
+"""Exception and warning classes of jointid.
+
+Every error raised on bad input is a :class:`JointidError` and also subclasses the
+built-in exception a caller would expect (``ValueError``, ``FileNotFoundError``...),
+so ``except ValueError`` keeps working.  Messages say what was expected and what came,
+and name the file, record and channel where there is one.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "JointidError",
+    "ManifestError",
+    "RecordError",
+    "RecordFileNotFoundError",
+    "StructureError",
+    "ConvergenceError",
+    "IdentificationError",
+    "JointidWarning",
+    "IllConditionedWarning",
+    "ConvergenceWarning",
+    "where",
+]
+
+
+def where(file=None, record=None, channel=None) -> str:
+    """Format a location prefix such as ``"records/0003.csv [record 3, channel 'accel']: "``."""
+    parts = []
+    if record is not None:
+        parts.append(f"record {record}")
+    if channel is not None:
+        parts.append(f"channel {channel!r}")
+    head = str(file) if file is not None else ""
+    if parts:
+        head = f"{head} [{', '.join(parts)}]" if head else ", ".join(parts)
+    return f"{head}: " if head else ""
+
+
+class JointidError(Exception):
+    """Base class of every error raised by jointid."""
+
+
+class ManifestError(JointidError, ValueError):
+    """A campaign manifest (``campaign.toml``) or configuration file is invalid."""
+
+
+class RecordError(JointidError, ValueError):
+    """A measured or simulated record cannot be used (bad values, lengths, time base...)."""
+
+
+class RecordFileNotFoundError(JointidError, FileNotFoundError):
+    """A file named by a manifest does not exist."""
+
+
+class StructureError(JointidError, ValueError):
+    """A structural model (beam, joint, sensors, mode shapes) is invalid."""
+
+
+class ConvergenceError(JointidError, RuntimeError):
+    """An iterative solver (harmonic balance, shooting, updating) did not converge."""
+
+
+class IdentificationError(JointidError, ValueError):
+    """An identification step cannot be carried out with the data given."""
+
+
+class JointidWarning(UserWarning):
+    """Base class of jointid warnings."""
+
+
+class IllConditionedWarning(JointidWarning):
+    """A regression is too ill-conditioned to resolve some of its coefficients."""
+
+
+class ConvergenceWarning(JointidWarning):
+    """A solver stopped early but returned a usable result."""

@@ -1,0 +1,280 @@
+"""Named restoring-force terms and term libraries.
+
+A restoring-force model is a sum of named terms ``phi_j(q, q')`` times coefficients
+``theta_j``: ``h(q, q') = sum_j theta_j phi_j(q, q')``.  Terms combine with ``+`` into a
+:class:`TermLibrary`; a library evaluates its regression matrix ``(n_samples, n_terms)``
+and, for harmonic balance, the partial derivatives of every term.
+
+The seed paper's model (Eq 21) is ``q + -q^3 + q'`` with coefficients
+``omega1^2``, ``k3`` and ``c``:
+
+>>> from jointid.identify.terms import library
+>>> lib = library("q + -q^3 + q'")
+>>> lib.names
+('q', '-q^3', "q'")
+>>> lib.coefficient_names
+('omega1^2', 'k3', 'c')
+
+Users add their own terms with :class:`Term`:
+
+>>> import numpy as np
+>>> quintic_damping = Term("q^4 q'", "d5", lambda q, v: q**4 * v, kind="damping")
+>>> (lib + quintic_damping).names[-1]
+"q^4 q'"
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..errors import IdentificationError
+
+__all__ = ["Term", "TermLibrary", "STANDARD_TERMS", "term", "library", "SEED_TERMS", "EQ22_TERMS"]
+
+Func = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+_FD_STEP = 1e-6
+
+
+@dataclass(frozen=True)
+class Term:
+    """One named restoring-force term ``phi(q, v)``.
+
+    Parameters
+    ----------
+    name : str
+        How the term prints, e.g. ``"-q^3"``.
+    coefficient : str
+        Name of its coefficient, e.g. ``"k3"``.
+    func : callable
+        ``func(q, v) -> array`` evaluated elementwise.
+    dq, dv : callable, optional
+        Partial derivatives ``d phi / d q`` and ``d phi / d v``.  When absent a central
+        difference is used (harmonic balance only needs them for its Jacobian).
+    kind : {"stiffness", "damping"}
+        Whether the term depends on displacement only (stiffness) or on velocity
+        (damping).  In a pooled regression damping terms get one coefficient per record
+        by default.
+    odd : bool
+        True when ``phi(-q, -v) = -phi(q, v)``; such terms create odd harmonics only.
+    """
+
+    name: str
+    coefficient: str
+    func: Func
+    dq: Func | None = None
+    dv: Func | None = None
+    kind: str = "stiffness"
+    odd: bool = True
+
+    def __post_init__(self):
+        if self.kind not in ("stiffness", "damping"):
+            raise ValueError(f"Term {self.name!r}: kind must be 'stiffness' or 'damping', got {self.kind!r}")
+
+    def __call__(self, q, v):
+        return np.asarray(self.func(np.asarray(q, float), np.asarray(v, float)), dtype=float)
+
+    def derivatives(self, q, v):
+        """Return ``(d phi/d q, d phi/d v)`` at the given states."""
+        q = np.asarray(q, float)
+        v = np.asarray(v, float)
+        if self.dq is not None:
+            gq = np.broadcast_to(np.asarray(self.dq(q, v), float), q.shape)
+        else:
+            h = _FD_STEP * (1.0 + np.abs(q))
+            gq = (self.func(q + h, v) - self.func(q - h, v)) / (2 * h)
+        if self.dv is not None:
+            gv = np.broadcast_to(np.asarray(self.dv(q, v), float), v.shape)
+        else:
+            h = _FD_STEP * (1.0 + np.abs(v))
+            gv = (self.func(q, v + h) - self.func(q, v - h)) / (2 * h)
+        return gq, gv
+
+    def __add__(self, other):
+        return TermLibrary((self,)) + other
+
+    def __repr__(self):
+        return f"Term({self.name!r}, coefficient={self.coefficient!r}, kind={self.kind!r})"
+
+
+@dataclass(frozen=True)
+class TermLibrary:
+    """An ordered set of :class:`Term` objects with distinct names."""
+
+    terms: tuple[Term, ...]
+
+    def __post_init__(self):
+        object.__setattr__(self, "terms", tuple(self.terms))
+        names = [t.name for t in self.terms]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise IdentificationError(f"term library has duplicate terms: {sorted(dup)}")
+        coefs = [t.coefficient for t in self.terms]
+        dup = {n for n in coefs if coefs.count(n) > 1}
+        if dup:
+            raise IdentificationError(f"term library has duplicate coefficient names: {sorted(dup)}")
+
+    def __add__(self, other):
+        if isinstance(other, Term):
+            return TermLibrary(self.terms + (other,))
+        if isinstance(other, TermLibrary):
+            return TermLibrary(self.terms + other.terms)
+        if isinstance(other, str):
+            return self + library(other)
+        return NotImplemented
+
+    def __radd__(self, other):
+        if isinstance(other, Term):
+            return TermLibrary((other,) + self.terms)
+        return NotImplemented
+
+    def __len__(self):
+        return len(self.terms)
+
+    def __iter__(self):
+        return iter(self.terms)
+
+    def __getitem__(self, key):
+        if isinstance(key, str):
+            return self.terms[self.index(key)]
+        return self.terms[key]
+
+    def index(self, name: str) -> int:
+        """Position of the term (or coefficient) called ``name``."""
+        for i, t in enumerate(self.terms):
+            if name in (t.name, t.coefficient):
+                return i
+        raise KeyError(f"no term or coefficient {name!r} in library {self.names}")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(t.name for t in self.terms)
+
+    @property
+    def coefficient_names(self) -> tuple[str, ...]:
+        return tuple(t.coefficient for t in self.terms)
+
+    @property
+    def odd(self) -> bool:
+        return all(t.odd for t in self.terms)
+
+    def evaluate(self, q, v) -> np.ndarray:
+        """Regression matrix ``(n_samples, n_terms)`` of the terms at states ``q, v``."""
+        q = np.asarray(q, float)
+        v = np.asarray(v, float)
+        out = np.empty(q.shape + (len(self.terms),))
+        for j, t in enumerate(self.terms):
+            out[..., j] = t(q, v)
+        return out
+
+    def restoring_force(self, q, v, coefficients) -> np.ndarray:
+        """``h(q, v) = sum_j theta_j phi_j(q, v)``."""
+        q = np.asarray(q, float)
+        v = np.asarray(v, float)
+        coefficients = np.asarray(coefficients, float)
+        if coefficients.shape[-1] != len(self.terms):
+            raise ValueError(f"{len(self.terms)} coefficients expected for {self.names}, got {coefficients.shape[-1]}")
+        h = np.zeros(np.broadcast(q, v).shape)
+        for t, c in zip(self.terms, coefficients):
+            if c != 0.0:
+                h = h + c * t(q, v)
+        return h
+
+    def derivatives(self, q, v, coefficients):
+        """``(dh/dq, dh/dv)`` of the restoring force."""
+        q = np.asarray(q, float)
+        v = np.asarray(v, float)
+        gq = np.zeros(np.broadcast(q, v).shape)
+        gv = np.zeros_like(gq)
+        for t, c in zip(self.terms, np.asarray(coefficients, float)):
+            if c != 0.0:
+                dq, dv = t.derivatives(q, v)
+                gq = gq + c * dq
+                gv = gv + c * dv
+        return gq, gv
+
+    def equation(self, coefficients, errors=None, lhs="Q - q''") -> str:
+        """Print the fitted model as an equation, with standard errors when given."""
+        parts = []
+        for j, (t, c) in enumerate(zip(self.terms, coefficients)):
+            value = f"{c:.6g}"
+            if errors is not None and np.isfinite(errors[j]):
+                value = f"({c:.6g} ± {errors[j]:.2g})"
+            parts.append(f"{value}·[{t.name}]")
+        return f"{lhs} = " + " + ".join(parts)
+
+    def __repr__(self):
+        return "TermLibrary(" + " + ".join(self.names) + ")"
+
+
+def _sgn(v):
+    return np.sign(v)
+
+
+STANDARD_TERMS: dict[str, Term] = {
+    t.name: t
+    for t in (
+        Term("q", "omega1^2", lambda q, v: q, lambda q, v: np.ones_like(q), lambda q, v: np.zeros_like(q)),
+        Term("-q^3", "k3", lambda q, v: -(q**3), lambda q, v: -3 * q**2, lambda q, v: np.zeros_like(q)),
+        Term("q^2", "k2", lambda q, v: q**2, lambda q, v: 2 * q, lambda q, v: np.zeros_like(q), odd=False),
+        Term("q^5", "k5", lambda q, v: q**5, lambda q, v: 5 * q**4, lambda q, v: np.zeros_like(q)),
+        Term("|q|q", "k_abs", lambda q, v: np.abs(q) * q, lambda q, v: 2 * np.abs(q), lambda q, v: np.zeros_like(q)),
+        Term("q'", "c", lambda q, v: v, lambda q, v: np.zeros_like(v), lambda q, v: np.ones_like(v), kind="damping"),
+        Term(
+            "|q'|q'", "c_quad", lambda q, v: np.abs(v) * v, lambda q, v: np.zeros_like(v),
+            lambda q, v: 2 * np.abs(v), kind="damping",
+        ),
+        Term("q'^3", "c_cubic", lambda q, v: v**3, lambda q, v: np.zeros_like(v), lambda q, v: 3 * v**2, kind="damping"),
+        # Coulomb friction; its derivative is taken as zero away from v = 0 (harmonic balance
+        # then relies on the smooth terms for its Jacobian).
+        Term(
+            "sign(q')", "f_c", lambda q, v: _sgn(v), lambda q, v: np.zeros_like(v),
+            lambda q, v: np.zeros_like(v), kind="damping",
+        ),
+        Term("q^2 q'", "c_qq", lambda q, v: q**2 * v, lambda q, v: 2 * q * v, lambda q, v: q**2, kind="damping"),
+    )
+}
+
+#: The seed paper's model, Eq 21 / 24: ``omega1^2 q - k3 q^3 + c q'``.
+SEED_TERMS = ("q", "-q^3", "q'")
+#: The richer set of Eq 22.
+EQ22_TERMS = ("q", "-q^3", "q'", "|q'|q'", "q'^3")
+
+
+def term(name: str) -> Term:
+    """Look up a standard term by name (``"q"``, ``"-q^3"``, ``"q'"``, ``"sign(q')"``, ...)."""
+    key = name.strip().replace(" ", "").replace("’", "'")
+    aliases = {"q^3": "-q^3", "-q3": "-q^3", "v": "q'", "dq": "q'", "|v|v": "|q'|q'", "v^3": "q'^3", "sign(v)": "sign(q')"}
+    key = aliases.get(key, key)
+    if key not in STANDARD_TERMS:
+        raise IdentificationError(f"unknown term {name!r}; the standard terms are {sorted(STANDARD_TERMS)}")
+    return STANDARD_TERMS[key]
+
+
+def library(spec="q + -q^3 + q'") -> TermLibrary:
+    """Build a :class:`TermLibrary` from names.
+
+    ``spec`` is a library, a sequence of names/terms, or a string of names separated by
+    ``,`` or `` + `` (``"q + -q^3 + q'"``, ``"q,-q^3,q'"``).  The shorthand ``"seed"``
+    gives Eq 21 and ``"eq22"`` gives Eq 22.
+    """
+    if isinstance(spec, TermLibrary):
+        return spec
+    if isinstance(spec, Term):
+        return TermLibrary((spec,))
+    if isinstance(spec, str):
+        s = spec.strip()
+        if s.lower() in ("seed", "eq21", "paper"):
+            return library(SEED_TERMS)
+        if s.lower() == "eq22":
+            return library(EQ22_TERMS)
+        # split on commas or on a '+' that separates terms (surrounded by spaces)
+        pieces = [p for chunk in s.split(",") for p in chunk.split(" + ")]
+        pieces = [p.strip() for p in pieces if p.strip()]
+        if not pieces:
+            raise IdentificationError(f"empty term specification {spec!r}")
+        return TermLibrary(tuple(term(p) for p in pieces))
+    return TermLibrary(tuple(t if isinstance(t, Term) else term(t) for t in spec))
