@@ -1,0 +1,455 @@
+"""Force-state mapping: regression of the restoring force on named terms (seed Eq 21-23).
+
+For every steady-state record the restoring force ``Q(t) - q''(t)`` (measured force minus
+the harmonic-filtered acceleration) is regressed on the term library evaluated at the
+analytically integrated displacement and velocity.
+
+* :class:`ForceStateMapping` fits one record (seed Eq 23) and
+  :func:`band_average` averages such fits over a frequency band (seed Tables 1 and 3).
+* :class:`PooledForceStateMapping` fits all records of a group together: stiffness terms
+  (``omega1^2``, ``k3``) are shared, damping terms get one coefficient per record.  The
+  shared coefficients then draw on the amplitude spread across the records, which
+  conditions ``k3`` far better than averaging single-record fits.
+
+Both follow the scikit-learn convention: parameters in ``__init__``, ``fit`` returns
+``self``, learned values end in ``_``.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import IdentificationError, IllConditionedWarning
+from ..signal.harmonics import StateSignals
+from .regression import LstsqResult, lstsq_from_reduced, qr_reduce
+from .terms import TermLibrary, library
+
+__all__ = [
+    "RecordFit",
+    "PooledFit",
+    "ForceStateMapping",
+    "PooledForceStateMapping",
+    "band_average",
+    "restoring_force",
+]
+
+#: Default limit on the scaled condition number above which a fit warns.
+COND_LIMIT = 1e8
+
+
+def restoring_force(signals: StateSignals, filtered=True):
+    """``(q, q', Q - q'')`` at the sample times; ``q''`` is the harmonic fit unless ``filtered=False``."""
+    q, v, a_fit = signals.states()
+    a = a_fit if filtered else signals.accel_measured
+    return q, v, signals.force - a
+
+
+def _named(names, coefficients, name, transform=None):
+    for n, c in zip(names, coefficients):
+        if n == name:
+            return transform(c) if transform else float(c)
+    return None
+
+
+def _omega1(value):
+    return float(np.sqrt(value)) if value is not None and value > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class RecordFit:
+    """Force-state mapping of one record.
+
+    Attributes
+    ----------
+    terms : tuple of str
+        Term names, in the library's order.
+    coefficient_names : tuple of str
+    coefficients, stderr : array
+        Estimates and standard errors (ordinary least-squares formula; residuals of a
+        harmonic record are not white, so read them as a scale, not a confidence level).
+    condition_number : float
+        Of the column-scaled regression matrix.
+    q_max : float
+        Steady-state amplitude of the reconstructed displacement.
+    frequency_hz : float
+    residual_rms : float
+        RMS of the regression residual (force units).
+    n_samples : int
+    """
+
+    terms: tuple
+    coefficient_names: tuple
+    coefficients: np.ndarray
+    stderr: np.ndarray
+    condition_number: float
+    q_max: float
+    frequency_hz: float
+    residual_rms: float
+    n_samples: int
+    warnings: tuple = ()
+
+    def get(self, name):
+        """Coefficient by coefficient or term name."""
+        for i, (t, c) in enumerate(zip(self.terms, self.coefficient_names)):
+            if name in (t, c):
+                return float(self.coefficients[i])
+        raise KeyError(name)
+
+    @property
+    def omega1(self) -> float:
+        """Identified linear natural frequency [rad/s] (``sqrt`` of the ``q`` coefficient)."""
+        return _omega1(_named(self.coefficient_names, self.coefficients, "omega1^2"))
+
+    @property
+    def k3(self):
+        return _named(self.coefficient_names, self.coefficients, "k3")
+
+    @property
+    def c(self):
+        return _named(self.coefficient_names, self.coefficients, "c")
+
+    def equation(self) -> str:
+        return library(self.terms).equation(self.coefficients, self.stderr)
+
+    def summary(self) -> dict:
+        return {
+            "frequency_hz": self.frequency_hz,
+            "q_max": self.q_max,
+            "omega1": self.omega1,
+            "f1_hz": self.omega1 / (2 * np.pi),
+            "k3": self.k3,
+            "c": self.c,
+            "terms": list(self.terms),
+            "coefficients": {n: float(v) for n, v in zip(self.coefficient_names, self.coefficients)},
+            "stderr": {n: float(v) for n, v in zip(self.coefficient_names, self.stderr)},
+            "condition_number": self.condition_number,
+            "residual_rms": self.residual_rms,
+            "n_samples": self.n_samples,
+            "warnings": list(self.warnings),
+        }
+
+    def report(self) -> str:
+        lines = [
+            f"force-state mapping at {self.frequency_hz:.6g} Hz, q_max = {self.q_max:.6g}, "
+            f"{self.n_samples} samples, condition number {self.condition_number:.3g}",
+            "  " + self.equation(),
+        ]
+        if np.isfinite(self.omega1):
+            lines.append(f"  omega1 = {self.omega1:.8g} rad/s ({self.omega1 / (2 * np.pi):.8g} Hz)")
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+
+def _check_terms(lib: TermLibrary, n_harmonics: int):
+    if n_harmonics < 3 and any(t.kind == "stiffness" and t.name not in ("q",) for t in lib):
+        raise IdentificationError(
+            f"a nonlinear stiffness term ({[t.name for t in lib if t.kind == 'stiffness' and t.name != 'q']}) "
+            f"needs at least 3 fitted harmonics to be seen, got n_harmonics={n_harmonics}"
+        )
+
+
+def _resolution_warnings(terms, res: LstsqResult, cond_limit, context=""):
+    """Warnings for a fit whose nonlinear coefficients the data cannot resolve."""
+    out = []
+    if not np.isfinite(res.condition_number) or res.condition_number > cond_limit:
+        out.append(
+            f"{context}regression too ill-conditioned (condition number {res.condition_number:.3g} > "
+            f"{cond_limit:.3g}); coefficients are not resolved"
+        )
+    for t, c, s in zip(terms, res.coefficients, res.stderr):
+        if t.name in ("q", "q'"):
+            continue
+        if t.kind == "stiffness" and np.isfinite(s) and s > abs(c):
+            out.append(
+                f"{context}{t.coefficient} not resolved by the data: {t.coefficient} = {c:.4g} ± {s:.2g} "
+                f"(condition number {res.condition_number:.3g})"
+            )
+    return tuple(out)
+
+
+class ForceStateMapping:
+    """Per-record force-state mapping (seed Eq 23).
+
+    Parameters
+    ----------
+    terms : str or TermLibrary
+        Restoring-force terms, ``"q + -q^3 + q'"`` (seed Eq 21) by default.
+    cond_limit : float
+        Scaled condition number above which the fit warns.
+    filtered : bool
+        Use the harmonic-filtered acceleration in ``Q - q''`` (the seed's choice).
+
+    Attributes
+    ----------
+    result_ : RecordFit
+    coef_, stderr_ : array
+    condition_number_ : float
+
+    Examples
+    --------
+    >>> from jointid.signal.harmonics import steady_state_signals
+    >>> t = np.arange(4000) / 2000.0
+    >>> w, A = 30.0, 0.01
+    >>> q = A * np.cos(w * t); v = -A * w * np.sin(w * t); a = -A * w**2 * np.cos(w * t)
+    >>> Q = a + 900.0 * q + 0.5 * v          # linear oscillator, omega1 = 30, c = 0.5
+    >>> sig = steady_state_signals(t, Q, a, frequency_hz=w / (2 * np.pi), n_harmonics=3)
+    >>> fsm = ForceStateMapping("q + q'").fit(sig)
+    >>> np.round(fsm.coef_, 8).tolist()
+    [900.0, 0.5]
+    """
+
+    def __init__(self, terms="q + -q^3 + q'", cond_limit=COND_LIMIT, filtered=True):
+        self.terms = terms
+        self.cond_limit = cond_limit
+        self.filtered = filtered
+
+    def fit(self, signals: StateSignals, *, context=""):
+        lib = library(self.terms)
+        _check_terms(lib, signals.acceleration.n_harmonics)
+        q, v, y = restoring_force(signals, self.filtered)
+        X = lib.evaluate(q, v)
+        res = lstsq_from_reduced(qr_reduce(X, y), X.shape[0])
+        warn = _resolution_warnings(list(lib), res, self.cond_limit, context)
+        for w in warn:
+            warnings.warn(w, IllConditionedWarning, stacklevel=2)
+        self.library_ = lib
+        self.lstsq_ = res
+        self.coef_ = res.coefficients
+        self.stderr_ = res.stderr
+        self.condition_number_ = res.condition_number
+        self.result_ = RecordFit(
+            lib.names,
+            lib.coefficient_names,
+            res.coefficients,
+            res.stderr,
+            res.condition_number,
+            signals.q_max(),
+            signals.frequency_hz,
+            float(np.sqrt(res.rss / max(res.n_samples, 1))),
+            res.n_samples,
+            warn,
+        )
+        return self
+
+
+def band_average(fits) -> dict:
+    """Average of single-record coefficients over a band of records (seed Tables 1, 3).
+
+    ``omega1`` is averaged as a frequency (the mean of the per-record square roots).
+    """
+    fits = list(fits)
+    if not fits:
+        raise IdentificationError("band_average needs at least one record fit")
+    names = fits[0].coefficient_names
+    C = np.array([f.coefficients for f in fits])
+    out = {n: float(v) for n, v in zip(names, C.mean(axis=0))}
+    out["omega1"] = float(np.mean([f.omega1 for f in fits]))
+    out["n_records"] = len(fits)
+    return out
+
+
+@dataclass(frozen=True)
+class PooledFit:
+    """Pooled force-state mapping over the records of a group.
+
+    Attributes
+    ----------
+    shared_names, shared, shared_stderr
+        Coefficients common to all records (``omega1^2``, ``k3`` ...).
+    own_names, own, own_stderr
+        Per-record coefficients, arrays ``(n_records, n_own)`` (``c`` ...).
+    q_max : array
+        Amplitude of each record.
+    frequency_hz : array
+    condition_number : float
+        Of the column-scaled pooled regression.
+    weights : array
+        Weight of each record (inverse residual standard deviation of its own fit).
+    """
+
+    terms: tuple
+    shared_names: tuple
+    shared: np.ndarray
+    shared_stderr: np.ndarray
+    own_names: tuple
+    own: np.ndarray
+    own_stderr: np.ndarray
+    q_max: np.ndarray
+    frequency_hz: np.ndarray
+    condition_number: float
+    weights: np.ndarray = field(repr=False)
+    n_samples: int = 0
+    warnings: tuple = ()
+
+    def get(self, name):
+        """A shared coefficient (float) or a per-record one (array) by name."""
+        if name in self.shared_names:
+            return float(self.shared[self.shared_names.index(name)])
+        if name in self.own_names:
+            return self.own[:, self.own_names.index(name)]
+        raise KeyError(name)
+
+    def get_stderr(self, name):
+        if name in self.shared_names:
+            return float(self.shared_stderr[self.shared_names.index(name)])
+        return self.own_stderr[:, self.own_names.index(name)]
+
+    @property
+    def omega1(self) -> float:
+        return _omega1(self.get("omega1^2")) if "omega1^2" in self.shared_names else float("nan")
+
+    @property
+    def omega1_stderr(self) -> float:
+        return self.get_stderr("omega1^2") / (2 * self.omega1) if np.isfinite(self.omega1) else float("nan")
+
+    @property
+    def k3(self):
+        return self.get("k3") if "k3" in self.shared_names else None
+
+    @property
+    def c(self):
+        return self.get("c") if "c" in self.own_names else None
+
+    def summary(self) -> dict:
+        return {
+            "omega1": self.omega1,
+            "omega1_stderr": self.omega1_stderr,
+            "f1_hz": self.omega1 / (2 * np.pi),
+            "k3": self.k3,
+            "shared": {n: float(v) for n, v in zip(self.shared_names, self.shared)},
+            "shared_stderr": {n: float(v) for n, v in zip(self.shared_names, self.shared_stderr)},
+            "per_record": {n: self.own[:, i].tolist() for i, n in enumerate(self.own_names)},
+            "per_record_stderr": {n: self.own_stderr[:, i].tolist() for i, n in enumerate(self.own_names)},
+            "q_max": self.q_max.tolist(),
+            "frequency_hz": self.frequency_hz.tolist(),
+            "condition_number": self.condition_number,
+            "n_records": int(len(self.q_max)),
+            "warnings": list(self.warnings),
+        }
+
+    def report(self) -> str:
+        lines = [
+            f"pooled force-state mapping over {len(self.q_max)} records "
+            f"(condition number {self.condition_number:.3g})"
+        ]
+        for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr):
+            lines.append(f"  {n:>10} = {v:.8g} ± {s:.2g}   (shared)")
+        if np.isfinite(self.omega1):
+            lines.append(f"  {'omega1':>10} = {self.omega1:.8g} rad/s = {self.omega1 / (2 * np.pi):.8g} Hz")
+        for i, n in enumerate(self.own_names):
+            lines.append(
+                f"  {n:>10} per record: {np.min(self.own[:, i]):.4g} .. {np.max(self.own[:, i]):.4g} "
+                f"over q_max {np.min(self.q_max):.4g} .. {np.max(self.q_max):.4g}"
+            )
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+    def plot(self, ax=None, name="c"):
+        """Per-record coefficient ``name`` against ``q_max`` (seed Fig 12)."""
+        from ..report.identify_plots import plot_per_record
+
+        return plot_per_record(self, name=name, ax=ax)
+
+
+class PooledForceStateMapping:
+    """Pooled force-state mapping over a group of records.
+
+    Parameters
+    ----------
+    terms : str or TermLibrary
+    per_record : sequence of str or None
+        Terms (names or coefficient names) that get one coefficient per record.  By
+        default every damping-kind term (``q'``, ``|q'|q'`` ...) does and the stiffness
+        terms are shared.
+    weighting : {"noise", "none"}
+        ``"noise"`` weights each record by the inverse residual standard deviation of its
+        own single-record fit (records are measured with different noise levels).
+    cond_limit : float
+
+    Attributes
+    ----------
+    result_ : PooledFit
+    record_fits_ : list of RecordFit
+        The single-record fits computed on the way.
+    """
+
+    def __init__(self, terms="q + -q^3 + q'", per_record=None, weighting="noise", cond_limit=COND_LIMIT, filtered=True):
+        self.terms = terms
+        self.per_record = per_record
+        self.weighting = weighting
+        self.cond_limit = cond_limit
+        self.filtered = filtered
+
+    def fit(self, signals_list, *, context=""):
+        signals_list = list(signals_list)
+        if not signals_list:
+            raise IdentificationError("pooled regression needs at least one record")
+        if self.weighting not in ("noise", "none"):
+            raise IdentificationError(f"weighting must be 'noise' or 'none', got {self.weighting!r}")
+        lib = library(self.terms)
+        for s in signals_list:
+            _check_terms(lib, s.acceleration.n_harmonics)
+        if self.per_record is None:
+            own_idx = [i for i, t in enumerate(lib) if t.kind == "damping"]
+        else:
+            own_idx = [lib.index(n) for n in self.per_record]
+        shared_idx = [i for i in range(len(lib)) if i not in own_idx]
+        ns, no, nr = len(shared_idx), len(own_idx), len(signals_list)
+        p = ns + no * nr
+        blocks, fits = [], []
+        n_total = 0
+        for r, s in enumerate(signals_list):
+            q, v, y = restoring_force(s, self.filtered)
+            X = lib.evaluate(q, v)
+            R = qr_reduce(X, y)  # columns in library order, then y
+            single = lstsq_from_reduced(R, X.shape[0])
+            fits.append(single)
+            n_total += X.shape[0]
+            w = 1.0
+            if self.weighting == "noise":
+                floor = 1e-13 * float(np.sqrt(np.mean(y**2)))
+                w = 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
+            block = np.zeros((R.shape[0], p + 1))
+            block[:, :ns] = R[:, shared_idx]
+            block[:, ns + r * no : ns + (r + 1) * no] = R[:, own_idx]
+            block[:, -1] = R[:, -1]
+            blocks.append(w * block)
+        res = lstsq_from_reduced(np.vstack(blocks), n_total)
+        shared_part = LstsqResult(
+            res.coefficients[:ns], res.stderr[:ns], res.covariance[:ns, :ns], res.condition_number, res.rss, n_total
+        )
+        warn = _resolution_warnings([lib[i] for i in shared_idx], shared_part, self.cond_limit, context)
+        for w in warn:
+            warnings.warn(w, IllConditionedWarning, stacklevel=2)
+        weights = np.array(
+            [1.0 / max(f.sigma, np.finfo(float).tiny) if self.weighting == "noise" else 1.0 for f in fits]
+        )
+        self.library_ = lib
+        self.lstsq_ = res
+        self.result_ = PooledFit(
+            lib.names,
+            tuple(lib[i].coefficient for i in shared_idx),
+            res.coefficients[:ns],
+            res.stderr[:ns],
+            tuple(lib[i].coefficient for i in own_idx),
+            res.coefficients[ns:].reshape(nr, no),
+            res.stderr[ns:].reshape(nr, no),
+            np.array([s.q_max() for s in signals_list]),
+            np.array([s.frequency_hz for s in signals_list]),
+            res.condition_number,
+            weights,
+            n_total,
+            warn,
+        )
+        self.coef_ = self.result_.shared
+        return self

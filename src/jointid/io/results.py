@@ -1,0 +1,92 @@
+"""Atomic writing of results (JSON, CSV, text, figures).
+
+Every file is written to a temporary file in the destination folder and renamed over the
+target (``os.replace``), so a reader never sees a half-written result and an interrupted
+run leaves the previous result intact.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["atomic_write", "write_json", "write_csv", "to_jsonable", "atomic_savefig"]
+
+
+def atomic_write(path, data, mode="w") -> Path:
+    """Write ``data`` (str or bytes) to ``path`` atomically; parent folders are created."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    binary = isinstance(data, (bytes, bytearray))
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb" if binary else "w", encoding=None if binary else "utf-8", newline=None if binary else "") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def to_jsonable(obj):
+    """Convert numpy scalars/arrays, tuples and non-finite floats to JSON-safe values (NaN -> None)."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, (np.bool_, bool)):
+        return bool(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def write_json(path, data) -> Path:
+    return atomic_write(path, json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n")
+
+
+def write_csv(path, rows: list[dict], columns=None) -> Path:
+    """Write a list of flat dicts as CSV (columns from the first row unless given)."""
+    columns = list(columns or (rows[0].keys() if rows else []))
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=columns, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: _cell(r.get(k)) for k in columns})
+    return atomic_write(path, buf.getvalue())
+
+
+def _cell(v):
+    if v is None:
+        return ""
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v)) if math.isfinite(v) else ""
+    return v
+
+
+def atomic_savefig(fig, path, **kw) -> Path:
+    """Save a matplotlib figure atomically (format from the suffix)."""
+    path = Path(path)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=path.suffix.lstrip(".") or "png", **kw)
+    return atomic_write(path, buf.getvalue())

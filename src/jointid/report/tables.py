@@ -1,0 +1,105 @@
+"""Plain-text tables of identification results."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["format_table", "campaign_report", "record_rows", "group_rows"]
+
+
+def format_table(rows, columns, headers=None, floatfmt=".6g") -> str:
+    """Fixed-width text table of ``rows`` (dicts) restricted to ``columns``."""
+    headers = headers or columns
+
+    def cell(v):
+        if v is None:
+            return "-"
+        if isinstance(v, (float, np.floating)):
+            return "nan" if not np.isfinite(v) else format(float(v), floatfmt)
+        return str(v)
+
+    body = [[cell(r.get(c)) for c in columns] for r in rows]
+    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(headers)]
+    line = "  ".join(h.rjust(w) for h, w in zip(headers, widths))
+    out = [line, "  ".join("-" * w for w in widths)]
+    out += ["  ".join(b[i].rjust(widths[i]) for i in range(len(widths))) for b in body]
+    return "\n".join(out)
+
+
+def record_rows(result) -> list[dict]:
+    rows = []
+    for r in result.records:
+        s = r.summary()
+        rows.append(
+            {
+                "index": s["index"],
+                "file": s["file"],
+                "preload": s["preload"],
+                "force_level": s["force_level"],
+                "frequency_hz": s["frequency_hz"],
+                "status": s["status"],
+                "q_max": s["q_max"],
+                "omega1": s["omega1"],
+                "k3": s["k3"],
+                "c": s["c"],
+                "c_pooled": s.get("c_pooled"),
+                "c_pooled_stderr": s.get("c_pooled_stderr"),
+                "energy_per_cycle": s.get("energy_per_cycle"),
+                "joint_force_amplitude": s.get("joint_force_amplitude"),
+                "error": s["error"],
+            }
+        )
+    return rows
+
+
+def group_rows(result) -> list[dict]:
+    rows = []
+    for g in result.groups:
+        s = g.summary()
+        pl = g.power_law
+        rows.append(
+            {
+                "preload": g.preload,
+                "force_level": g.force_level,
+                "n_records": len(g.record_indices),
+                "f1_hz": s.get("f1_hz"),
+                "omega1": s.get("omega1"),
+                "k3": s.get("k3"),
+                "k3_stderr": s.get("k3_stderr"),
+                "f1_hz_mean": s.get("f1_hz_mean"),
+                "k3_mean": s.get("k3_mean"),
+                "alpha": pl.alpha if pl else None,
+                "n": pl.n if pl else None,
+            }
+        )
+    return rows
+
+
+def campaign_report(result) -> str:
+    """Text report: groups (Table 5 analogue), damping laws (Table 2), power laws, failures."""
+    out = [f"campaign {result.name!r}: {len(result.records)} records, {len(result.failed)} failed",
+           f"terms: {' + '.join(result.settings.summary()['terms'])}, "
+           f"{result.settings.n_harmonics} harmonics, damping law order {result.settings.damping_order}", ""]
+    out.append("Groups: pooled regression (shared omega1, k3; one c per record) and band average")
+    out.append(
+        format_table(
+            group_rows(result),
+            ["preload", "force_level", "n_records", "f1_hz", "k3", "k3_stderr", "f1_hz_mean", "k3_mean", "n"],
+            ["preload", "F", "records", "f1 [Hz]", "k3", "se(k3)", "f1 mean", "k3 mean", "n (U~F^n)"],
+        )
+    )
+    out.append("")
+    out.append("Damping laws c(q_max) (fitted to the pooled per-record c):")
+    for p, law in result.damping_laws.items():
+        out.append(f"  preload {p}: " + (law.report() if law is not None else result.damping_law_errors.get(p, "-")))
+    out.append("")
+    out.append("Power laws of the dissipated energy per cycle:")
+    for g in result.groups:
+        txt = g.power_law.report() if g.power_law else (g.power_law_error or "-")
+        out.append(f"  preload {g.preload}, F {g.force_level}: {txt}")
+    if result.failed:
+        out.append("")
+        out.append("Failed records:")
+        for r in result.failed:
+            out.append(f"  {r.error}")
+    return "\n".join(out)

@@ -1,0 +1,412 @@
+"""Single-frequency steady-state records: frequency, harmonic fit and analytic integration.
+
+Implements seed Eq 16-18.  A record ``(t, force, accel)`` of a steady state under a
+single-frequency force is reduced to
+
+* the excitation frequency, estimated from the force when it is not given;
+* a least-squares fit of ``n`` harmonics (plus a constant) to the acceleration, valid for
+  any record length (non-integer number of periods), any start time and any sampling
+  rate above twice the highest fitted harmonic;
+* velocity and displacement by analytic integration of the fitted series, with the
+  integration constants set so that both have zero mean (``C1 = C2 = 0``).
+
+The harmonic coefficient convention is the one of :mod:`jointid.conventions`, with the
+time origin ``t0`` of the fit (the record's first time stamp) so that large absolute
+times lose no precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg
+
+from ..conventions import harmonic_index, n_coefficients
+from ..errors import RecordError
+
+__all__ = [
+    "HarmonicSeries",
+    "StateSignals",
+    "check_time_base",
+    "estimate_frequency",
+    "fit_harmonics",
+    "steady_state_signals",
+    "series_max_abs",
+]
+
+#: Minimum number of excitation periods in a record.
+MIN_PERIODS = 2.0
+#: Fraction of the force variance a sinusoid must explain to count as a single-frequency excitation.
+MIN_SINE_FRACTION = 0.5
+
+
+def check_time_base(t, *, channel="time", rtol=1e-2) -> float:
+    """Check that ``t`` is finite, strictly increasing and uniform; return the step ``dt``.
+
+    A step may deviate from the mean step by ``rtol`` of it (rounding of written time
+    stamps); a dropped or repeated sample is far outside that.
+
+    Raises
+    ------
+    RecordError
+        Naming the channel and the first offending sample.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size < 3:
+        raise RecordError(f"channel {channel!r}: expected a 1-D time vector of at least 3 samples, got shape {t.shape}")
+    bad = ~np.isfinite(t)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise RecordError(f"channel {channel!r}: non-finite time value {t[i]!r} at sample {i}")
+    d = np.diff(t)
+    if (d <= 0).any():
+        i = int(np.flatnonzero(d <= 0)[0])
+        raise RecordError(
+            f"channel {channel!r}: time must increase strictly; sample {i + 1} ({t[i + 1]!r} s) "
+            f"does not follow sample {i} ({t[i]!r} s)"
+        )
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    dev = np.abs(d - dt)
+    i = int(np.argmax(dev))
+    if dev[i] > rtol * dt:
+        raise RecordError(
+            f"channel {channel!r}: uneven sampling; expected a uniform step of {dt:.6g} s, "
+            f"step {i} (after {t[i]!r} s) is {d[i]:.6g} s"
+        )
+    return float(dt)
+
+
+def _check_signal(x, name, n=None):
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 1:
+        raise RecordError(f"channel {name!r}: expected a 1-D signal, got shape {x.shape}")
+    if n is not None and x.size != n:
+        raise RecordError(f"channel {name!r}: has {x.size} samples but the time column has {n}")
+    bad = ~np.isfinite(x)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise RecordError(f"channel {name!r}: non-finite value {x[i]!r} at sample {i} ({int(bad.sum())} in all)")
+    return x
+
+
+def _basis(tau, omega, n_harmonics):
+    """Real design matrix ``(n, 2H+1)``: [1, cos wt, sin wt, cos 2wt, ...]."""
+    z1 = np.exp(1j * omega * tau)
+    out = np.empty((tau.size, n_coefficients(n_harmonics)))
+    out[:, 0] = 1.0
+    z = z1
+    for k in range(1, n_harmonics + 1):
+        if k > 1:
+            # exact phases every 8 harmonics keep the recurrence error at rounding level
+            z = z * z1 if k % 8 else np.exp(1j * k * omega * tau)
+        out[:, 2 * k - 1] = z.real
+        out[:, 2 * k] = z.imag
+    return out
+
+
+@dataclass(frozen=True)
+class HarmonicSeries:
+    """A truncated Fourier series ``x(t) = a0 + sum a_k cos(k w (t-t0)) + b_k sin(k w (t-t0))``."""
+
+    omega: float
+    coefficients: np.ndarray
+    t0: float = 0.0
+
+    @property
+    def n_harmonics(self) -> int:
+        return (len(self.coefficients) - 1) // 2
+
+    @property
+    def period(self) -> float:
+        return 2 * np.pi / self.omega
+
+    def __call__(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return (_basis(np.ravel(t) - self.t0, self.omega, self.n_harmonics) @ self.coefficients).reshape(t.shape)
+
+    def derivative(self) -> "HarmonicSeries":
+        """The time derivative (its constant is zero)."""
+        c = self.coefficients
+        k = harmonic_index(self.n_harmonics)[1::2] * self.omega
+        d = np.zeros_like(c)
+        d[1::2] = k * c[2::2]
+        d[2::2] = -k * c[1::2]
+        return HarmonicSeries(self.omega, d, self.t0)
+
+    def integral(self) -> "HarmonicSeries":
+        """The zero-mean antiderivative (the constant term is dropped: seed Eq 17-18, C = 0)."""
+        c = self.coefficients
+        k = harmonic_index(self.n_harmonics)[1::2] * self.omega
+        d = np.zeros_like(c)
+        d[1::2] = -c[2::2] / k
+        d[2::2] = c[1::2] / k
+        return HarmonicSeries(self.omega, d, self.t0)
+
+    def amplitudes(self) -> np.ndarray:
+        """Amplitude of each harmonic ``1..H``."""
+        c = self.coefficients
+        return np.hypot(c[1::2], c[2::2])
+
+    def max_abs(self) -> float:
+        """``max_t |x(t)|`` over one period, to machine precision (see :func:`series_max_abs`)."""
+        return series_max_abs(self.coefficients, self.omega)
+
+
+def series_max_abs(coefficients, omega=1.0) -> float:
+    """Largest ``|x(t)|`` of a harmonic series over one period.
+
+    A dense grid of ``64 (H + 1)`` points per period locates the extremum and Newton's
+    method on ``x'(t) = 0`` refines it, so the result does not depend on any sampling.
+    """
+    c = np.asarray(coefficients, dtype=float)
+    H = (c.size - 1) // 2
+    s = HarmonicSeries(1.0, c)
+    n = 64 * (H + 1)
+    tau = np.arange(n) * (2 * np.pi / n)
+    x = s(tau)
+    i = int(np.argmax(np.abs(x)))
+    tt = tau[i]
+    d1 = s.derivative()
+    d2 = d1.derivative()
+    for _ in range(20):
+        g = float(d1(tt))
+        h = float(d2(tt))
+        if h == 0.0:
+            break
+        step = g / h
+        if abs(step) > 2 * np.pi / n:  # stay in the bracket found on the grid
+            break
+        tt -= step
+        if abs(step) < 1e-15:
+            break
+    return float(max(abs(float(s(tt))), abs(x[i])))
+
+
+def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tuple[HarmonicSeries, float]:
+    """Least-squares fit of ``n_harmonics`` harmonics plus a constant (seed Eq 16).
+
+    Parameters
+    ----------
+    t, x : array
+        Uniformly sampled time [s] and signal.
+    omega : float
+        Fundamental angular frequency [rad/s].
+    n_harmonics : int
+        Number of harmonics ``n``.
+    channel : str
+        Name used in error messages.
+    t0 : float, optional
+        Time origin of the series; the first time stamp by default.
+
+    Returns
+    -------
+    series : HarmonicSeries
+    residual_rms : float
+        RMS of ``x`` minus the fitted series.
+
+    Examples
+    --------
+    >>> t = np.arange(1000) / 1000.0 + 3.21
+    >>> s, r = fit_harmonics(t, 2 * np.sin(30 * t) + 0.1 * np.cos(90 * t), 30.0, 3)
+    >>> bool(np.allclose(s(t), 2 * np.sin(30 * t) + 0.1 * np.cos(90 * t)))
+    True
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    n_harmonics = int(n_harmonics)
+    if n_harmonics < 1:
+        raise ValueError(f"n_harmonics must be >= 1, got {n_harmonics}")
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    fs = 1.0 / dt
+    f_top = n_harmonics * omega / (2 * np.pi)
+    if f_top >= fs / 2:
+        raise RecordError(
+            f"channel {channel!r}: harmonic {n_harmonics} of {omega / (2 * np.pi):.6g} Hz is at {f_top:.6g} Hz, "
+            f"not below the Nyquist frequency {fs / 2:.6g} Hz; sample faster or fit fewer harmonics"
+        )
+    t0 = float(t[0]) if t0 is None else float(t0)
+    A = _basis(t - t0, omega, n_harmonics)
+    # the columns are nearly orthogonal sinusoids: the Gram matrix is well conditioned
+    G = A.T @ A
+    rhs = A.T @ x
+    try:
+        coef = linalg.solve(G, rhs, assume_a="pos")
+    except (linalg.LinAlgError, ValueError) as exc:
+        raise RecordError(f"channel {channel!r}: harmonic fit failed ({exc})") from exc
+    resid = x - A @ coef
+    return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(np.mean(resid**2)))
+
+
+def _sine_fit_gn(tau, x, omega, iterations=6):
+    """Gauss-Newton refinement of the frequency of ``a cos + b sin + d`` fitted to ``x``."""
+    for _ in range(iterations):
+        c, s = np.cos(omega * tau), np.sin(omega * tau)
+        A = np.column_stack([c, s, np.ones_like(tau)])
+        coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+        a, b, _ = coef
+        J = tau * (-a * s + b * c)
+        r = x - A @ coef
+        # eliminate the linear parameters: project J onto the complement of A
+        Jp = J - A @ np.linalg.lstsq(A, J, rcond=None)[0]
+        den = Jp @ Jp
+        if den <= 0:
+            break
+        step = (Jp @ r) / den
+        omega = omega + step
+        if abs(step) < 1e-13 * omega:
+            break
+    c, s = np.cos(omega * tau), np.sin(omega * tau)
+    A = np.column_stack([c, s, np.ones_like(tau)])
+    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+    fraction = 1.0 - np.sum((x - A @ coef) ** 2) / max(np.sum((x - x.mean()) ** 2), np.finfo(float).tiny)
+    return float(omega), float(fraction)
+
+
+def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
+    """Excitation frequency [Hz] of a single-frequency force record.
+
+    The largest peak of the zero-padded spectrum is refined by Gauss-Newton on a sine
+    plus constant fitted to all samples (maximum-likelihood for white noise).
+
+    Raises
+    ------
+    RecordError
+        If the force is identically zero, or no sinusoid explains at least half of its
+        variance (not a single-frequency excitation).
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(force, dtype=float)
+    x = x - x.mean()
+    if not np.any(x):
+        raise RecordError(f"channel {channel!r}: the force is zero; no excitation frequency can be found")
+    n = x.size
+    dt = (t[-1] - t[0]) / (n - 1)
+    nfft = 1 << int(np.ceil(np.log2(4 * n)))
+    spec = np.abs(np.fft.rfft(x * np.hanning(n), nfft))
+    freqs = np.fft.rfftfreq(nfft, dt)
+    spec[0] = 0.0
+    if f_range is not None:
+        spec[(freqs < f_range[0]) | (freqs > f_range[1])] = 0.0
+    k = int(np.argmax(spec))
+    if 0 < k < spec.size - 1:
+        y0, y1, y2 = np.log(spec[k - 1 : k + 2] + np.finfo(float).tiny)
+        den = y0 - 2 * y1 + y2
+        delta = 0.5 * (y0 - y2) / den if den != 0 else 0.0
+    else:
+        delta = 0.0
+    f0 = (k + float(np.clip(delta, -0.5, 0.5))) / (nfft * dt)
+    if f0 <= 0:
+        raise RecordError(f"channel {channel!r}: no excitation frequency found (spectrum peak at 0 Hz)")
+    tau = t - t[0]
+    omega, fraction = _sine_fit_gn(tau, x, 2 * np.pi * f0)
+    if fraction < MIN_SINE_FRACTION or not np.isfinite(omega) or omega <= 0:
+        raise RecordError(
+            f"channel {channel!r}: no excitation frequency found; the best sinusoid ({f0:.6g} Hz) explains only "
+            f"{100 * fraction:.1f} % of the force variance (expected a single-frequency force, at least "
+            f"{100 * MIN_SINE_FRACTION:.0f} %)"
+        )
+    return omega / (2 * np.pi)
+
+
+@dataclass(frozen=True)
+class StateSignals:
+    """A steady-state record reduced to its state signals (modal coordinates).
+
+    Attributes
+    ----------
+    t : array
+        Sample times [s].
+    force : array
+        Measured (modal) force ``Q(t)``.
+    accel_measured : array
+        Measured (modal) acceleration ``q''(t)``.
+    acceleration : HarmonicSeries
+        The harmonic fit of the acceleration (the "filtered" acceleration).
+    frequency_hz : float
+        Excitation frequency.
+    frequency_given : bool
+        Whether the frequency came with the record (else estimated from the force).
+    accel_residual_rms : float
+        RMS of the acceleration left outside the fitted harmonics.
+    """
+
+    t: np.ndarray = field(repr=False)
+    force: np.ndarray = field(repr=False)
+    accel_measured: np.ndarray = field(repr=False)
+    acceleration: HarmonicSeries
+    frequency_hz: float
+    frequency_given: bool
+    accel_residual_rms: float
+
+    @property
+    def omega(self) -> float:
+        return 2 * np.pi * self.frequency_hz
+
+    @property
+    def velocity(self) -> HarmonicSeries:
+        return self.acceleration.integral()
+
+    @property
+    def displacement(self) -> HarmonicSeries:
+        return self.velocity.integral()
+
+    @property
+    def n_periods(self) -> float:
+        return (self.t[-1] - self.t[0] + (self.t[1] - self.t[0])) * self.frequency_hz
+
+    def states(self):
+        """``(q, q', q''_filtered)`` at the sample times."""
+        tau = self.t - self.acceleration.t0
+        H = self.acceleration.n_harmonics
+        A = _basis(tau, self.omega, H)
+        return A @ self.displacement.coefficients, A @ self.velocity.coefficients, A @ self.acceleration.coefficients
+
+    def q_max(self) -> float:
+        """Steady-state amplitude ``max |q(t)|`` of the reconstructed displacement."""
+        return self.displacement.max_abs()
+
+
+def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, channels=("time", "force", "accel")):
+    """Validate a steady-state record and reduce it to :class:`StateSignals`.
+
+    Parameters
+    ----------
+    t, force, accel : array
+        Time [s], (modal) force and (modal) acceleration, equal lengths.
+    frequency_hz : float, optional
+        Excitation frequency; estimated from the force when ``None``.
+    n_harmonics : int
+        Harmonics fitted to the acceleration (the seed uses 4).
+    channels : tuple of str
+        Column names used in error messages.
+
+    Raises
+    ------
+    RecordError
+        Non-finite values, different lengths, bad time base, zero force, no excitation
+        frequency found, fewer than two periods, or harmonics above Nyquist.
+    """
+    tname, fname, aname = channels
+    t = _check_signal(t, tname)
+    check_time_base(t, channel=tname)
+    force = _check_signal(force, fname, t.size)
+    accel = _check_signal(accel, aname, t.size)
+    if not np.any(force - force.mean()):
+        raise RecordError(f"channel {fname!r}: the force is zero (or constant); the record carries no excitation")
+    given = frequency_hz is not None
+    if given:
+        frequency_hz = float(frequency_hz)
+        if not np.isfinite(frequency_hz) or frequency_hz <= 0:
+            raise RecordError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
+    else:
+        frequency_hz = estimate_frequency(t, force, channel=fname)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    periods = (t[-1] - t[0] + dt) * frequency_hz
+    if periods < MIN_PERIODS:
+        raise RecordError(
+            f"channel {tname!r}: the record spans {periods:.3g} periods of {frequency_hz:.6g} Hz; "
+            f"at least {MIN_PERIODS:g} are needed"
+        )
+    series, resid = fit_harmonics(t, accel, 2 * np.pi * frequency_hz, n_harmonics, channel=aname)
+    return StateSignals(t, force, accel, series, frequency_hz, given, resid)

@@ -1,0 +1,351 @@
+"""Campaign identification: records -> state signals -> force-state mapping -> laws.
+
+:func:`identify_campaign` runs the whole chain on a campaign folder (or a parsed
+:class:`~jointid.io.campaign.Campaign`) and returns a frozen :class:`CampaignResult`.
+A record that cannot be used is reported as failed with the reason, and the other
+records still finish.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import IdentificationError, JointidError, JointidWarning, where
+from .identify.fsm import ForceStateMapping, PooledFit, PooledForceStateMapping, RecordFit, band_average
+from .identify.laws import DampingLaw, PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
+from .identify.terms import library
+from .io.campaign import Campaign, RecordSpec, load_campaign, read_record
+from .signal.harmonics import StateSignals, steady_state_signals
+
+__all__ = ["IdentifySettings", "RecordOutcome", "GroupResult", "CampaignResult", "identify_campaign", "process_record"]
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """Choices of an identification run (all recorded in ``results.json``).
+
+    Parameters
+    ----------
+    terms : str
+        Restoring-force terms, e.g. ``"q + -q^3 + q'"``.
+    n_harmonics : int
+        Harmonics fitted to the acceleration (seed: 4).
+    damping_order : int
+        Order of the ``c(q_max)`` polynomial.
+    weighting : {"noise", "none"}
+        Record weights in the pooled regression.
+    progress : bool
+        Show a progress bar.
+    """
+
+    terms: str = "q + -q^3 + q'"
+    n_harmonics: int = 5
+    damping_order: int = 2
+    weighting: str = "noise"
+    progress: bool = False
+
+    def summary(self) -> dict:
+        return {
+            "terms": list(library(self.terms).names),
+            "n_harmonics": self.n_harmonics,
+            "damping_order": self.damping_order,
+            "weighting": self.weighting,
+        }
+
+
+@dataclass(frozen=True)
+class RecordOutcome:
+    """What became of one record."""
+
+    spec: RecordSpec
+    status: str
+    error: str | None = None
+    signals: StateSignals | None = field(default=None, repr=False)
+    fit: RecordFit | None = None
+    c_pooled: float | None = None
+    c_pooled_stderr: float | None = None
+    energy: float | None = None
+    joint_force: float | None = None
+    modal_residual: float | None = None
+    warnings: tuple = ()
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def summary(self) -> dict:
+        s = self.spec
+        d = {
+            "index": s.index,
+            "file": s.file,
+            "preload": s.preload,
+            "force_level": s.force_level,
+            "frequency_hz": self.signals.frequency_hz if self.signals is not None else s.frequency_hz,
+            "frequency_given": s.frequency_hz is not None,
+            "status": self.status,
+            "error": self.error,
+            "q_max": None,
+            "omega1": None,
+            "k3": None,
+            "c": None,
+        }
+        if self.fit is not None:
+            d.update(
+                q_max=self.fit.q_max,
+                omega1=self.fit.omega1,
+                f1_hz=self.fit.omega1 / (2 * np.pi),
+                k3=self.fit.k3,
+                c=self.fit.c,
+                c_pooled=self.c_pooled,
+                c_pooled_stderr=self.c_pooled_stderr,
+                energy_per_cycle=self.energy,
+                joint_force_amplitude=self.joint_force,
+                coefficients=self.fit.summary()["coefficients"],
+                stderr=self.fit.summary()["stderr"],
+                condition_number=self.fit.condition_number,
+                accel_residual_rms=self.signals.accel_residual_rms,
+            )
+        if self.modal_residual is not None:
+            d["modal_residual"] = self.modal_residual
+        d["warnings"] = list(self.warnings)
+        return d
+
+
+@dataclass(frozen=True)
+class GroupResult:
+    """One (preload, force level) group: pooled fit, band average and power law."""
+
+    preload: object
+    force_level: object
+    record_indices: tuple
+    pooled: PooledFit | None
+    band: dict | None
+    power_law: PowerLaw | None = None
+    power_law_error: str | None = None
+
+    def summary(self) -> dict:
+        d = {"preload": self.preload, "force_level": self.force_level, "records": list(self.record_indices)}
+        if self.pooled is not None:
+            d.update(
+                omega1=self.pooled.omega1,
+                omega1_stderr=self.pooled.omega1_stderr,
+                f1_hz=self.pooled.omega1 / (2 * np.pi),
+                k3=self.pooled.k3,
+                k3_stderr=self.pooled.get_stderr("k3") if "k3" in self.pooled.shared_names else None,
+                pooled=self.pooled.summary(),
+            )
+        if self.band is not None:
+            d.update(
+                omega1_mean=self.band["omega1"],
+                f1_hz_mean=self.band["omega1"] / (2 * np.pi),
+                k3_mean=self.band.get("k3"),
+                band_average=self.band,
+            )
+        return d
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """Everything identified from a campaign.
+
+    ``summary()`` is the content of ``results.json``; ``report()`` prints the tables.
+    """
+
+    name: str
+    root: str
+    settings: IdentifySettings
+    records: tuple
+    groups: tuple
+    damping_laws: dict
+    damping_law_errors: dict = field(default_factory=dict)
+
+    @property
+    def failed(self):
+        return [r for r in self.records if not r.ok]
+
+    def group(self, preload, force_level) -> GroupResult:
+        for g in self.groups:
+            if g.preload == preload and g.force_level == force_level:
+                return g
+        raise KeyError((preload, force_level))
+
+    def summary(self) -> dict:
+        from . import __version__
+
+        return {
+            "jointid_version": __version__,
+            "campaign": {"name": self.name, "folder": self.root},
+            "settings": self.settings.summary(),
+            "records": [r.summary() for r in self.records],
+            "groups": [g.summary() for g in self.groups],
+            "damping_law": [
+                {"preload": p, **law.summary()} if law is not None else {"preload": p, "coefficients": None,
+                                                                          "error": self.damping_law_errors.get(p)}
+                for p, law in self.damping_laws.items()
+            ],
+            "power_law": [
+                {"preload": g.preload, "force_level": g.force_level,
+                 **(g.power_law.summary() if g.power_law else {"alpha": None, "n": None, "error": g.power_law_error})}
+                for g in self.groups
+            ],
+            "n_records": len(self.records),
+            "n_failed": len(self.failed),
+        }
+
+    def report(self) -> str:
+        from .report.tables import campaign_report
+
+        return campaign_report(self)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+
+def _context(spec: RecordSpec) -> str:
+    return where(spec.file, spec.index)
+
+
+def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) -> RecordOutcome:
+    """Read, reduce and fit one record; any :class:`JointidError` becomes a failed outcome."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", JointidWarning)
+        try:
+            if to_modal is None:
+                data = read_record(spec)
+                Q, qdd, resid = data.channels["force"], data.channels["accel"], None
+                names = ("time", "force", "accel")
+            else:
+                data = read_record(spec, required=("time",) + tuple(to_modal.required_columns))
+                Q, qdd, resid = to_modal.to_modal(data.channels)
+                names = ("time", "force (modal)", "accel (modal)")
+            signals = steady_state_signals(
+                data.time, Q, qdd, frequency_hz=spec.frequency_hz, n_harmonics=settings.n_harmonics, channels=names
+            )
+            fit = ForceStateMapping(settings.terms).fit(signals, context=_context(spec)).result_
+        except JointidError as exc:
+            msg = str(exc)
+            if not msg.startswith(str(spec.file)):
+                msg = _context(spec) + msg
+            return RecordOutcome(spec, "failed", msg, warnings=tuple(str(w.message) for w in caught))
+    return RecordOutcome(
+        spec, "ok", None, signals, fit, modal_residual=resid, warnings=tuple(str(w.message) for w in caught)
+    )
+
+
+def _group_key(value):
+    return (0, value) if isinstance(value, (int, float)) else (1, str(value))
+
+
+def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) -> CampaignResult:
+    """Identify every record of a campaign, then the groups and the laws.
+
+    Parameters
+    ----------
+    campaign : path or Campaign
+    settings : IdentifySettings, optional
+    **kw
+        Overrides of :class:`IdentifySettings` fields (``terms=...``, ``n_harmonics=...``).
+    """
+    if settings is None:
+        settings = IdentifySettings(**kw)
+    elif kw:
+        from dataclasses import replace
+
+        settings = replace(settings, **kw)
+    if not isinstance(campaign, Campaign):
+        campaign = load_campaign(campaign)
+    library(settings.terms)  # fail early on unknown terms
+    to_modal = None
+    if campaign.coordinates == "physical":
+        from .modal.structure import Structure
+
+        to_modal = Structure.from_mapping(campaign.structure, source=str(campaign.root / "campaign.toml"))
+
+    specs = campaign.records
+    iterator = specs
+    if settings.progress:
+        from tqdm.auto import tqdm
+
+        iterator = tqdm(specs, desc="records", unit="rec")
+    outcomes = [process_record(s, settings, to_modal) for s in iterator]
+    for o in outcomes:
+        for w in o.warnings:
+            warnings.warn(w, JointidWarning, stacklevel=2)
+
+    # groups: pooled regression and band average
+    keys = sorted({o.spec.group for o in outcomes}, key=lambda k: (_group_key(k[0]), _group_key(k[1])))
+    groups = []
+    outcomes = list(outcomes)
+    for key in keys:
+        members = [i for i, o in enumerate(outcomes) if o.spec.group == key and o.ok]
+        pooled = band = None
+        if members:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                pooled = PooledForceStateMapping(settings.terms, weighting=settings.weighting).fit(
+                    [outcomes[i].signals for i in members], context=f"group preload={key[0]}, force_level={key[1]}: "
+                ).result_
+            for w in pooled.warnings:
+                warnings.warn(w, JointidWarning, stacklevel=2)
+            band = band_average([outcomes[i].fit for i in members])
+            if "c" in pooled.own_names:
+                for j, i in enumerate(members):
+                    outcomes[i] = _replace(outcomes[i], c_pooled=float(pooled.get("c")[j]),
+                                           c_pooled_stderr=float(pooled.get_stderr("c")[j]))
+        groups.append(GroupResult(key[0], key[1], tuple(outcomes[i].spec.index for i in members), pooled, band))
+
+    # damping law per preload over all its records (pooled c)
+    laws, law_errors = {}, {}
+    for preload in sorted({k[0] for k in keys}, key=_group_key):
+        idx = [i for i, o in enumerate(outcomes) if o.ok and o.spec.preload == preload and o.c_pooled is not None]
+        try:
+            laws[preload] = fit_damping_law(
+                [outcomes[i].fit.q_max for i in idx],
+                [outcomes[i].c_pooled for i in idx],
+                [outcomes[i].c_pooled_stderr for i in idx],
+                order=settings.damping_order,
+            )
+        except IdentificationError as exc:
+            laws[preload] = None
+            law_errors[preload] = f"preload {preload}: {exc}"
+
+    # energy per cycle and power law per group
+    final_groups = []
+    for g in groups:
+        law = laws.get(g.preload)
+        idx = [i for i, o in enumerate(outcomes) if o.ok and o.spec.group == (g.preload, g.force_level)]
+        F, U = [], []
+        if g.pooled is not None and idx:
+            w1 = g.pooled.omega1
+            k3 = g.pooled.k3 or 0.0
+            for i in idx:
+                o = outcomes[i]
+                c = float(law(o.fit.q_max)) if law is not None else o.c_pooled
+                if c is None or not np.isfinite(w1):
+                    continue
+                u = dissipated_energy(o.signals.velocity.coefficients, o.signals.omega, lambda v, c=c: c * v)
+                f = elastic_force_amplitude(o.signals.displacement.coefficients, w1, k3)
+                outcomes[i] = _replace(o, energy=u, joint_force=f)
+                F.append(f)
+                U.append(u)
+        power, perr = None, None
+        try:
+            power = fit_power_law(F, U)
+        except IdentificationError as exc:
+            perr = f"preload {g.preload}, force level {g.force_level}: {exc}"
+        final_groups.append(_replace(g, power_law=power, power_law_error=perr))
+
+    return CampaignResult(
+        campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors
+    )
+
+
+def _replace(obj, **kw):
+    from dataclasses import replace
+
+    return replace(obj, **kw)
