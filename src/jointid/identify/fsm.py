@@ -34,18 +34,19 @@ __all__ = [
     "ForceStateMapping",
     "PooledForceStateMapping",
     "band_average",
-    "restoring_force",
 ]
 
 #: Default limit on the scaled condition number above which a fit warns.
 COND_LIMIT = 1e8
 
 
-def restoring_force(signals: StateSignals, filtered=True):
-    """``(q, q', Q - q'')`` at the sample times; ``q''`` is the harmonic fit unless ``filtered=False``."""
+def _reduced(lib, signals, filtered):
+    """``R`` of ``[X, y_fit, y_raw]`` for one record: fitted and unfiltered restoring force."""
     q, v, a_fit = signals.states()
-    a = a_fit if filtered else signals.accel_measured
-    return q, v, signals.force - a
+    X = lib.evaluate(q, v)
+    y_raw = signals.force - signals.accel_measured
+    y_fit = signals.force - a_fit if filtered else y_raw
+    return qr_reduce(X, y_fit, y_raw), X.shape[0]
 
 
 def _named(names, coefficients, name, transform=None):
@@ -136,7 +137,7 @@ class RecordFit:
         lines = [
             f"force-state mapping at {self.frequency_hz:.6g} Hz, q_max = {self.q_max:.6g}, "
             f"{self.n_samples} samples, condition number {self.condition_number:.3g}",
-            "  " + self.equation(),
+            self.equation(),
         ]
         if np.isfinite(self.omega1):
             lines.append(f"  omega1 = {self.omega1:.8g} rad/s ({self.omega1 / (2 * np.pi):.8g} Hz)")
@@ -213,9 +214,9 @@ class ForceStateMapping:
     def fit(self, signals: StateSignals, *, context=""):
         lib = library(self.terms)
         _check_terms(lib, signals.acceleration.n_harmonics)
-        q, v, y = restoring_force(signals, self.filtered)
-        X = lib.evaluate(q, v)
-        res = lstsq_from_reduced(qr_reduce(X, y), X.shape[0])
+        R, n = _reduced(lib, signals, self.filtered)
+        p = len(lib)
+        res = lstsq_from_reduced(R[:, :p], R[:, p], n, R[:, p + 1])
         warn = _resolution_warnings(list(lib), res, self.cond_limit, context)
         for w in warn:
             warnings.warn(w, IllConditionedWarning, stacklevel=2)
@@ -408,23 +409,23 @@ class PooledForceStateMapping:
         p = ns + no * nr
         blocks, fits = [], []
         n_total = 0
+        nt = len(lib)
         for r, s in enumerate(signals_list):
-            q, v, y = restoring_force(s, self.filtered)
-            X = lib.evaluate(q, v)
-            R = qr_reduce(X, y)  # columns in library order, then y
-            single = lstsq_from_reduced(R, X.shape[0])
+            R, n = _reduced(lib, s, self.filtered)  # columns: terms in library order, y_fit, y_raw
+            single = lstsq_from_reduced(R[:, :nt], R[:, nt], n, R[:, nt + 1])
             fits.append(single)
-            n_total += X.shape[0]
+            n_total += n
             w = 1.0
             if self.weighting == "noise":
-                floor = 1e-13 * float(np.sqrt(np.mean(y**2)))
+                floor = 1e-13 * float(np.abs(R[:, nt]).max()) / np.sqrt(n)
                 w = 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
-            block = np.zeros((R.shape[0], p + 1))
+            block = np.zeros((R.shape[0], p + 2))
             block[:, :ns] = R[:, shared_idx]
             block[:, ns + r * no : ns + (r + 1) * no] = R[:, own_idx]
-            block[:, -1] = R[:, -1]
+            block[:, -2:] = R[:, nt:]
             blocks.append(w * block)
-        res = lstsq_from_reduced(np.vstack(blocks), n_total)
+        B = np.vstack(blocks)
+        res = lstsq_from_reduced(B[:, :p], B[:, p], n_total, B[:, p + 1])
         shared_part = LstsqResult(
             res.coefficients[:ns], res.stderr[:ns], res.covariance[:ns, :ns], res.condition_number, res.rss, n_total
         )

@@ -40,34 +40,44 @@ class LstsqResult:
         return float(np.sqrt(self.rss / self.dof))
 
 
-def qr_reduce(X, y, chunk=262144) -> np.ndarray:
-    """Upper-triangular ``R`` (``p+1`` square) of ``[X y]`` such that ``[X y]^T [X y] = R^T R``.
+def qr_reduce(X, *ys, chunk=262144) -> np.ndarray:
+    """Upper-triangular ``R`` of ``[X y1 y2 ...]`` (square, ``p + len(ys)``), ``M^T M = R^T R``.
 
     Long matrices are reduced chunk by chunk (a tall-skinny QR), so memory stays bounded.
+    Any residual ``y_j - X theta`` has the norm of ``R[:, y_j] - R[:, :p] theta``.
     """
     X = np.asarray(X, dtype=float)
-    y = np.asarray(y, dtype=float)
     n, p = X.shape
+    m = p + len(ys)
     R = None
     for start in range(0, n, chunk):
-        block = np.column_stack([X[start : start + chunk], y[start : start + chunk]])
+        block = np.column_stack([X[start : start + chunk]] + [np.asarray(y, float)[start : start + chunk] for y in ys])
         if R is not None:
             block = np.vstack([R, block])
-        R = linalg.qr(block, mode="r", check_finite=False)[0][: p + 1]
-    if R.shape[0] < p + 1:  # fewer rows than columns
-        R = np.vstack([R, np.zeros((p + 1 - R.shape[0], p + 1))])
+        R = linalg.qr(block, mode="r", check_finite=False)[0][:m]
+    if R.shape[0] < m:  # fewer rows than columns
+        R = np.vstack([R, np.zeros((m - R.shape[0], m))])
     return R
 
 
-def lstsq_from_reduced(R_aug, n_samples) -> LstsqResult:
-    """Solve the least-squares problem whose augmented factor is ``R_aug = [R_X | r_y]``.
+def lstsq_from_reduced(A, b, n_samples, b_noise=None) -> LstsqResult:
+    """Solve ``min |A theta - b|`` where ``A, b`` are (stacks of) reduced factors.
 
-    ``R_aug`` may be any stack of rows (several records' factors, weighted) with the
-    right-hand side in the last column.
+    Parameters
+    ----------
+    A, b : array
+        Rows of reduced factors (``R[:, :p]`` and ``R[:, p]`` of :func:`qr_reduce`), possibly
+        stacked over records and weighted.
+    n_samples : int
+        Number of original samples (for the degrees of freedom).
+    b_noise : array, optional
+        A second right-hand side whose residual ``|A theta - b_noise|`` measures the noise
+        for the standard errors.  Force-state mapping fits the harmonic-filtered restoring
+        force but takes the noise from the unfiltered one: the filter leaves the noise
+        that lies in the regressors' harmonics, which white-noise formulas must see.
     """
-    R_aug = np.asarray(R_aug, dtype=float)
-    A = R_aug[:, :-1]
-    b = R_aug[:, -1]
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float)
     scale = np.sqrt(np.sum(A**2, axis=0))
     scale[scale == 0] = 1.0
     As = A / scale
@@ -82,11 +92,13 @@ def lstsq_from_reduced(R_aug, n_samples) -> LstsqResult:
         Rinv = np.full((p, p), np.nan)
     sv = linalg.svdvals(R, check_finite=False)
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
-    rss = float(np.sum((b - As @ z) ** 2)) if np.all(np.isfinite(z)) else float("nan")
+    if not np.all(np.isfinite(z)):
+        rss = float("nan")
+    else:
+        rss = float(np.sum(((b if b_noise is None else np.asarray(b_noise, float)) - As @ z) ** 2))
     coef = z / scale
     dof = max(n_samples - p, 1)
-    cov_s = (Rinv @ Rinv.T) * (rss / dof)
-    cov = cov_s / np.outer(scale, scale)
+    cov = (Rinv @ Rinv.T) * (rss / dof) / np.outer(scale, scale)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     return LstsqResult(coef, se, cov, cond, rss, int(n_samples))
 
@@ -102,4 +114,5 @@ def scaled_lstsq(X, y) -> LstsqResult:
     [2.0, 1.0]
     """
     X = np.asarray(X, dtype=float)
-    return lstsq_from_reduced(qr_reduce(X, y), X.shape[0])
+    R = qr_reduce(X, y)
+    return lstsq_from_reduced(R[:, :-1], R[:, -1], X.shape[0])

@@ -197,14 +197,19 @@ class TermLibrary:
         return gq, gv
 
     def equation(self, coefficients, errors=None, lhs="Q - q''") -> str:
-        """Print the fitted model as an equation, with standard errors when given."""
-        parts = []
+        """The fitted model as an equation with values (and standard errors when given).
+
+        >>> print(library("q + q'").equation([900.0, 0.5], [0.1, 0.01]))
+        Q - q'' = omega1^2·[q] + c·[q']
+          omega1^2 = 900 ± 0.1
+          c = 0.5 ± 0.01
+        """
+        head = f"{lhs} = " + " + ".join(f"{t.coefficient}·[{t.name}]" for t in self.terms)
+        lines = [head]
         for j, (t, c) in enumerate(zip(self.terms, coefficients)):
-            value = f"{c:.6g}"
-            if errors is not None and np.isfinite(errors[j]):
-                value = f"({c:.6g} ± {errors[j]:.2g})"
-            parts.append(f"{value}·[{t.name}]")
-        return f"{lhs} = " + " + ".join(parts)
+            err = f" ± {errors[j]:.2g}" if errors is not None and np.isfinite(errors[j]) else ""
+            lines.append(f"  {t.coefficient} = {c:.8g}{err}")
+        return "\n".join(lines)
 
     def __repr__(self):
         return "TermLibrary(" + " + ".join(self.names) + ")"
