@@ -276,6 +276,10 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     for o in outcomes:
         for w in o.warnings:
             warnings.warn(w, JointidWarning, stacklevel=2)
+    failed = [o for o in outcomes if not o.ok]
+    if failed:
+        listing = "\n  ".join(o.error for o in failed[:10]) + ("\n  ..." if len(failed) > 10 else "")
+        warnings.warn(f"{len(failed)} of {len(outcomes)} records failed:\n  {listing}", JointidWarning, stacklevel=2)
 
     # groups: pooled regression and band average
     keys = sorted({o.spec.group for o in outcomes}, key=lambda k: (_group_key(k[0]), _group_key(k[1])))

@@ -38,6 +38,8 @@ __all__ = [
 
 #: Default limit on the scaled condition number above which a fit warns.
 COND_LIMIT = 1e8
+#: A nonlinear stiffness coefficient closer to zero than this many standard errors is "not resolved".
+RESOLVED_T = 3.0
 
 
 def _reduced(lib, signals, filtered):
@@ -167,10 +169,10 @@ def _resolution_warnings(terms, res: LstsqResult, cond_limit, context=""):
     for t, c, s in zip(terms, res.coefficients, res.stderr):
         if t.name in ("q", "q'"):
             continue
-        if t.kind == "stiffness" and np.isfinite(s) and s > abs(c):
+        if t.kind == "stiffness" and np.isfinite(s) and RESOLVED_T * s > abs(c):
             out.append(
-                f"{context}{t.coefficient} not resolved by the data: {t.coefficient} = {c:.4g} ± {s:.2g} "
-                f"(condition number {res.condition_number:.3g})"
+                f"{context}{t.coefficient} not resolved by the data: {t.coefficient} = {c:.4g} ± {s:.2g}, "
+                f"less than {RESOLVED_T:g} standard errors from zero (condition number {res.condition_number:.3g})"
             )
     return tuple(out)
 

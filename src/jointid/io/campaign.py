@@ -16,7 +16,7 @@ A CSV record has one header row: ``time`` [s], ``force``, then the acceleration
 column(s) (``accel`` in a modal campaign).  Other record formats (UFF 58, HDF5, MAT) are
 read by extension through :mod:`jointid.io` readers where available.
 
-Nothing is guessed silently: a path leaving the folder, a missing file, a missing
+Nothing is guessed silently: a path leaving the folder (that record is refused), a missing file, a missing
 column, values that are not finite, columns of different lengths and a time base that is
 not uniform are refused with an error naming the file, the record and the channel.
 """
@@ -49,6 +49,7 @@ class RecordSpec:
     force_level: Any
     preload: Any
     extra: dict = field(default_factory=dict)
+    error: str | None = None
 
     @property
     def group(self) -> tuple:
@@ -123,12 +124,17 @@ def load_campaign(folder) -> Campaign:
         rel = entry["file"]
         if not isinstance(rel, str) or not rel:
             raise ManifestError(f"{ctx}'file' must be a non-empty string, got {rel!r}")
+        # problems of a single entry fail that record only; the others still run
+        error = None
         p = (root / rel).resolve()
         if Path(rel).is_absolute() or not p.is_relative_to(root_resolved):
-            raise ManifestError(f"{ctx}record path {rel!r} leaves the campaign folder; it is refused")
-        freq = _number(entry.get("frequency_hz"), "frequency_hz", ctx)
-        if freq is not None and freq <= 0:
-            raise ManifestError(f"{ctx}frequency_hz must be positive, got {freq!r}")
+            error = f"{where(rel, i)}record path leaves the campaign folder {root}; it is refused"
+        try:
+            freq = _number(entry.get("frequency_hz"), "frequency_hz", "")
+            if freq is not None and freq <= 0:
+                raise ManifestError(f"frequency_hz must be positive, got {freq!r}")
+        except ManifestError as exc:
+            freq, error = None, error or f"{where(rel, i)}manifest entry: {exc}"
         known = {"file", "frequency_hz", "force_level", "preload"}
         records.append(
             RecordSpec(
@@ -139,6 +145,7 @@ def load_campaign(folder) -> Campaign:
                 force_level=entry.get("force_level"),
                 preload=entry.get("preload"),
                 extra={k: v for k, v in entry.items() if k not in known},
+                error=error,
             )
         )
     structure = data.get("structure")
@@ -177,6 +184,8 @@ def read_record(spec: RecordSpec, required=("time", "force", "accel")) -> Record
         Naming the file, the record index and the channel.
     """
     path = spec.path
+    if spec.error:
+        raise ManifestError(spec.error)
     if not path.is_file():
         raise RecordFileNotFoundError(f"{where(spec.file, spec.index)}record file not found ({path})")
     suffix = path.suffix.lower()

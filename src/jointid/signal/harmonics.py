@@ -37,6 +37,8 @@ __all__ = [
 
 #: Minimum number of excitation periods in a record.
 MIN_PERIODS = 2.0
+#: Harmonics of the force fitted together with its fundamental when estimating the frequency.
+FORCE_HARMONICS = 5
 #: Fraction of the force variance a sinusoid must explain to count as a single-frequency excitation.
 MIN_SINE_FRACTION = 0.5
 
@@ -238,26 +240,30 @@ def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tupl
     return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(np.mean(resid**2)))
 
 
-def _sine_fit_gn(tau, x, omega, iterations=6):
-    """Gauss-Newton refinement of the frequency of ``a cos + b sin + d`` fitted to ``x``."""
+def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
+    """Gauss-Newton refinement of the fundamental of a periodic signal.
+
+    The model is a constant plus ``n_harmonics`` harmonics of ``omega``; fitting the
+    harmonics together with the fundamental keeps a distorted force (a shaker's
+    harmonics) from biasing the frequency.  Returns ``(omega, explained fraction)``.
+    """
     for _ in range(iterations):
-        c, s = np.cos(omega * tau), np.sin(omega * tau)
-        A = np.column_stack([c, s, np.ones_like(tau)])
+        A = _basis(tau, omega, n_harmonics)
         coef, *_ = np.linalg.lstsq(A, x, rcond=None)
-        a, b, _ = coef
-        J = tau * (-a * s + b * c)
+        k = np.arange(1, n_harmonics + 1)
+        # d/d omega of sum a_k cos(k w t) + b_k sin(k w t)
+        J = tau * (A[:, 2::2] @ (-k * coef[1::2]) + A[:, 1::2] @ (k * coef[2::2]))
         r = x - A @ coef
-        # eliminate the linear parameters: project J onto the complement of A
-        Jp = J - A @ np.linalg.lstsq(A, J, rcond=None)[0]
+        Jp = J - A @ np.linalg.lstsq(A, J, rcond=None)[0]  # variable projection
         den = Jp @ Jp
         if den <= 0:
             break
         step = (Jp @ r) / den
+        step = float(np.clip(step, -0.5 * np.pi / tau[-1], 0.5 * np.pi / tau[-1]))
         omega = omega + step
         if abs(step) < 1e-13 * omega:
             break
-    c, s = np.cos(omega * tau), np.sin(omega * tau)
-    A = np.column_stack([c, s, np.ones_like(tau)])
+    A = _basis(tau, omega, n_harmonics)
     coef, *_ = np.linalg.lstsq(A, x, rcond=None)
     fraction = 1.0 - np.sum((x - A @ coef) ** 2) / max(np.sum((x - x.mean()) ** 2), np.finfo(float).tiny)
     return float(omega), float(fraction)
@@ -266,8 +272,9 @@ def _sine_fit_gn(tau, x, omega, iterations=6):
 def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
     """Excitation frequency [Hz] of a single-frequency force record.
 
-    The largest peak of the zero-padded spectrum is refined by Gauss-Newton on a sine
-    plus constant fitted to all samples (maximum-likelihood for white noise).
+    The largest peak of the zero-padded spectrum is refined by Gauss-Newton on a
+    constant plus the fundamental and its first harmonics fitted to all samples
+    (maximum likelihood for white noise; harmonics of a distorted force do not bias it).
 
     Raises
     ------
@@ -299,10 +306,11 @@ def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
     if f0 <= 0:
         raise RecordError(f"channel {channel!r}: no excitation frequency found (spectrum peak at 0 Hz)")
     tau = t - t[0]
-    omega, fraction = _sine_fit_gn(tau, x, 2 * np.pi * f0)
+    n_harm = int(max(1, min(FORCE_HARMONICS, np.floor(0.45 / (f0 * dt)))))
+    omega, fraction = _periodic_fit_gn(tau, x, 2 * np.pi * f0, n_harm)
     if fraction < MIN_SINE_FRACTION or not np.isfinite(omega) or omega <= 0:
         raise RecordError(
-            f"channel {channel!r}: no excitation frequency found; the best sinusoid ({f0:.6g} Hz) explains only "
+            f"channel {channel!r}: no excitation frequency found; the best periodic fit ({f0:.6g} Hz) explains only "
             f"{100 * fraction:.1f} % of the force variance (expected a single-frequency force, at least "
             f"{100 * MIN_SINE_FRACTION:.0f} %)"
         )
