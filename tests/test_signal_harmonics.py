@@ -24,7 +24,7 @@ def test_fit_recovers_harmonics_any_length_and_start(periods, t0):
     fs = 2000.0
     t = t0 + np.arange(int(periods * fs / 17.3)) / fs
     s, resid = fit_harmonics(t, _signal(t, w, t0), w, 4)
-    assert resid < 1e-12
+    assert resid < 1e-7  # one-pass residual: |x|^2 - theta.r, exact to sqrt(eps) of the RMS
     assert np.allclose(s(t), _signal(t, w, t0), atol=1e-12)
     amp = s.amplitudes()
     assert amp[0] == pytest.approx(np.hypot(2.0, 0.3), rel=1e-12)
@@ -39,7 +39,8 @@ def test_fit_just_above_nyquist_and_refused_at_it():
     t = np.arange(400) / fs
     x = np.cos(w * t) + 0.1 * np.sin(3 * w * t)
     s, resid = fit_harmonics(t, x, w, 3)
-    assert resid < 1e-10
+    assert resid < 1e-7
+    assert np.allclose(s(t), x, atol=1e-11)
     with pytest.raises(RecordError, match="Nyquist"):
         fit_harmonics(t, x, w, 4)
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import IdentificationError, IllConditionedWarning
 from ..signal.harmonics import StateSignals
-from .regression import LstsqResult, lstsq_from_reduced, qr_reduce
+from .regression import LstsqResult, lstsq_from_reduced, reduce_blocks
 from .terms import TermLibrary, library
 
 __all__ = [
@@ -43,12 +43,20 @@ RESOLVED_T = 3.0
 
 
 def _reduced(lib, signals, filtered):
-    """``R`` of ``[X, y_fit, y_raw]`` for one record: fitted and unfiltered restoring force."""
-    q, v, a_fit = signals.states()
-    X = lib.evaluate(q, v)
-    y_raw = signals.force - signals.accel_measured
-    y_fit = signals.force - a_fit if filtered else y_raw
-    return qr_reduce(X, y_fit, y_raw), X.shape[0]
+    """``R`` of ``[X, y_fit, y_raw]`` for one record: fitted and unfiltered restoring force.
+
+    The record is streamed block by block, so a long record never builds its full
+    regression matrix.
+    """
+
+    def blocks():
+        for sl, q, v, a_fit in signals.blocks():
+            Q = signals.force[sl]
+            y_raw = Q - signals.accel_measured[sl]
+            y_fit = Q - a_fit if filtered else y_raw
+            yield np.column_stack([lib.evaluate(q, v), y_fit, y_raw])
+
+    return reduce_blocks(blocks, len(lib)), signals.t.size
 
 
 def _named(names, coefficients, name, transform=None):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-__all__ = ["LstsqResult", "scaled_lstsq", "qr_reduce", "lstsq_from_reduced"]
+__all__ = ["LstsqResult", "scaled_lstsq", "qr_reduce", "reduce_blocks", "lstsq_from_reduced"]
 
 
 @dataclass(frozen=True)
@@ -43,21 +43,51 @@ class LstsqResult:
 def qr_reduce(X, *ys, chunk=262144) -> np.ndarray:
     """Upper-triangular ``R`` of ``[X y1 y2 ...]`` (square, ``p + len(ys)``), ``M^T M = R^T R``.
 
-    Long matrices are reduced chunk by chunk (a tall-skinny QR), so memory stays bounded.
     Any residual ``y_j - X theta`` has the norm of ``R[:, y_j] - R[:, :p] theta``.
     """
     X = np.asarray(X, dtype=float)
-    n, p = X.shape
-    m = p + len(ys)
+    M = np.column_stack([X] + [np.asarray(y, float) for y in ys])
+    return reduce_blocks(lambda: (M[s : s + chunk] for s in range(0, M.shape[0], chunk)), X.shape[1])
+
+
+def reduce_blocks(make_blocks, p) -> np.ndarray:
+    """``R`` of a tall matrix given block by block; ``make_blocks()`` returns a fresh iterator.
+
+    The first ``p`` columns are regressors, the others right-hand sides.  One pass
+    accumulates the Gram matrix; when its column-scaled regressor block is well
+    conditioned (condition number of the matrix below 1e4) ``R`` is its Cholesky factor.
+    Otherwise a second pass runs a blockwise Householder QR (a tall-skinny QR), which
+    keeps full accuracy for ill-conditioned term sets.
+    """
+    G = None
+    for B in make_blocks():
+        G = B.T @ B if G is None else G + B.T @ B
+    m = G.shape[0]
+    scale = np.sqrt(np.diag(G)).copy()
+    scale[scale == 0] = 1.0
+    Gs = G / np.outer(scale, scale)
+    try:
+        L = linalg.cholesky(Gs[:p, :p], lower=False, check_finite=False)
+        sv = linalg.svdvals(L, check_finite=False)
+        ok = sv[-1] > 0 and sv[0] / sv[-1] < 1e4
+    except linalg.LinAlgError:
+        ok = False
+    if ok:
+        R = np.zeros((m, m))
+        R[:p, :p] = L
+        R[:p, p:] = linalg.solve_triangular(L, Gs[:p, p:], trans="T", check_finite=False)
+        S = Gs[p:, p:] - R[:p, p:].T @ R[:p, p:]
+        # the right-hand sides' residual Gram (positive semi-definite up to rounding)
+        w, V = np.linalg.eigh(0.5 * (S + S.T))
+        R[p:, p:] = linalg.qr((V * np.sqrt(np.clip(w, 0.0, None))).T, mode="r", check_finite=False)[0]
+        return R * scale
     R = None
-    for start in range(0, n, chunk):
-        block = np.column_stack([X[start : start + chunk]] + [np.asarray(y, float)[start : start + chunk] for y in ys])
-        if R is not None:
-            block = np.vstack([R, block])
+    for B in make_blocks():
+        block = B / scale if R is None else np.vstack([R, B / scale])
         R = linalg.qr(block, mode="r", check_finite=False)[0][:m]
     if R.shape[0] < m:  # fewer rows than columns
         R = np.vstack([R, np.zeros((m - R.shape[0], m))])
-    return R
+    return R * scale
 
 
 def lstsq_from_reduced(A, b, n_samples, b_noise=None) -> LstsqResult:

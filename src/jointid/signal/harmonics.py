@@ -93,18 +93,31 @@ def _check_signal(x, name, n=None):
 
 
 def _basis(tau, omega, n_harmonics):
-    """Real design matrix ``(n, 2H+1)``: [1, cos wt, sin wt, cos 2wt, ...]."""
-    z1 = np.exp(1j * omega * tau)
-    out = np.empty((tau.size, n_coefficients(n_harmonics)))
+    """Real design matrix ``(n, 2H+1)``: [1, cos wt, sin wt, cos 2wt, ...].
+
+    Harmonics come from the angle-addition recurrence, refreshed with exact values every
+    8 harmonics, which keeps the error at the rounding level and costs a few array
+    multiplications per harmonic instead of a trigonometric call.
+    """
+    out = np.empty((tau.size, n_coefficients(n_harmonics)), order="F")  # contiguous columns
     out[:, 0] = 1.0
-    z = z1
-    for k in range(1, n_harmonics + 1):
-        if k > 1:
-            # exact phases every 8 harmonics keep the recurrence error at rounding level
-            z = z * z1 if k % 8 else np.exp(1j * k * omega * tau)
-        out[:, 2 * k - 1] = z.real
-        out[:, 2 * k] = z.imag
+    phase = omega * tau
+    c1, s1 = np.cos(phase), np.sin(phase)
+    out[:, 1], out[:, 2] = c1, s1
+    for k in range(2, n_harmonics + 1):
+        if k % 8 == 0:
+            out[:, 2 * k - 1] = np.cos(k * phase)
+            out[:, 2 * k] = np.sin(k * phase)
+        else:
+            cp, sp = out[:, 2 * k - 3], out[:, 2 * k - 2]
+            out[:, 2 * k - 1] = cp * c1 - sp * s1
+            out[:, 2 * k] = sp * c1 + cp * s1
     return out
+
+
+def _gram_lstsq(A, x):
+    """Least squares by the normal equations, for nearly orthogonal (sinusoidal) columns."""
+    return linalg.solve(A.T @ A, A.T @ x, assume_a="pos")
 
 
 @dataclass(frozen=True)
@@ -205,7 +218,8 @@ def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tupl
     -------
     series : HarmonicSeries
     residual_rms : float
-        RMS of ``x`` minus the fitted series.
+        RMS of ``x`` minus the fitted series (from the one-pass sums, so exact to about
+        ``1e-8`` of the RMS of ``x``).
 
     Examples
     --------
@@ -228,16 +242,39 @@ def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tupl
             f"not below the Nyquist frequency {fs / 2:.6g} Hz; sample faster or fit fewer harmonics"
         )
     t0 = float(t[0]) if t0 is None else float(t0)
-    A = _basis(t - t0, omega, n_harmonics)
-    # the columns are nearly orthogonal sinusoids: the Gram matrix is well conditioned
-    G = A.T @ A
-    rhs = A.T @ x
+    return _streaming_fit(t - t0, x, omega, n_harmonics, t0, channel)
+
+
+#: Samples per block when streaming through long records (keeps the work in cache).
+BLOCK = 32768
+
+
+def _blocks(n, size=BLOCK):
+    for start in range(0, n, size):
+        yield slice(start, min(n, start + size))
+
+
+def _streaming_fit(tau, x, omega, n_harmonics, t0, channel):
+    """Harmonic least squares accumulated block by block (normal equations).
+
+    The columns are nearly orthogonal sinusoids, so the Gram matrix is well conditioned
+    for any record of two periods or more.
+    """
+    m = n_coefficients(n_harmonics)
+    G = np.zeros((m, m))
+    r = np.zeros(m)
+    xx = 0.0
+    for sl in _blocks(tau.size):
+        A = _basis(tau[sl], omega, n_harmonics)
+        G += A.T @ A
+        r += A.T @ x[sl]
+        xx += float(x[sl] @ x[sl])
     try:
-        coef = linalg.solve(G, rhs, assume_a="pos")
+        coef = linalg.solve(G, r, assume_a="pos")
     except (linalg.LinAlgError, ValueError) as exc:
         raise RecordError(f"channel {channel!r}: harmonic fit failed ({exc})") from exc
-    resid = x - A @ coef
-    return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(np.mean(resid**2)))
+    rss = max(xx - float(coef @ r), 0.0)
+    return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(rss / tau.size))
 
 
 def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
@@ -247,26 +284,38 @@ def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
     harmonics together with the fundamental keeps a distorted force (a shaker's
     harmonics) from biasing the frequency.  Returns ``(omega, explained fraction)``.
     """
+    k = np.arange(1, n_harmonics + 1)
+    max_step = 0.5 * np.pi / tau[-1]
     for _ in range(iterations):
         A = _basis(tau, omega, n_harmonics)
-        coef, *_ = np.linalg.lstsq(A, x, rcond=None)
-        k = np.arange(1, n_harmonics + 1)
-        # d/d omega of sum a_k cos(k w t) + b_k sin(k w t)
+        coef = _gram_lstsq(A, x)
+        # d/d omega of sum a_k cos(k w t) + b_k sin(k w t), with the linear parameters
+        # projected out (variable projection)
         J = tau * (A[:, 2::2] @ (-k * coef[1::2]) + A[:, 1::2] @ (k * coef[2::2]))
-        r = x - A @ coef
-        Jp = J - A @ np.linalg.lstsq(A, J, rcond=None)[0]  # variable projection
+        Jp = J - A @ _gram_lstsq(A, J)
         den = Jp @ Jp
         if den <= 0:
             break
-        step = (Jp @ r) / den
-        step = float(np.clip(step, -0.5 * np.pi / tau[-1], 0.5 * np.pi / tau[-1]))
+        step = float(np.clip((Jp @ (x - A @ coef)) / den, -max_step, max_step))
         omega = omega + step
-        if abs(step) < 1e-13 * omega:
+        if abs(step) < 1e-12 * omega:
             break
     A = _basis(tau, omega, n_harmonics)
-    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+    coef = _gram_lstsq(A, x)
     fraction = 1.0 - np.sum((x - A @ coef) ** 2) / max(np.sum((x - x.mean()) ** 2), np.finfo(float).tiny)
     return float(omega), float(fraction)
+
+
+def _refine_progressively(tau, x, omega, n_harmonics, first=32768, growth=8):
+    """Refine on a growing prefix of the record so that each stage starts well inside
+    the convergence region of the next, longer one (cost: about two passes of the record)."""
+    n = tau.size
+    m = min(n, first)
+    while True:
+        omega, fraction = _periodic_fit_gn(tau[:m], x[:m], omega, n_harmonics, iterations=8 if m == first else 3)
+        if m == n:
+            return omega, fraction
+        m = min(n, m * growth)
 
 
 def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
@@ -289,8 +338,9 @@ def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
         raise RecordError(f"channel {channel!r}: the force is zero; no excitation frequency can be found")
     n = x.size
     dt = (t[-1] - t[0]) / (n - 1)
-    nfft = 1 << int(np.ceil(np.log2(4 * n)))
-    spec = np.abs(np.fft.rfft(x * np.hanning(n), nfft))
+    m = min(n, 32768)  # the spectrum of a prefix is enough to start the refinement
+    nfft = 1 << int(np.ceil(np.log2(4 * m)))
+    spec = np.abs(np.fft.rfft(x[:m] * np.hanning(m), nfft))
     freqs = np.fft.rfftfreq(nfft, dt)
     spec[0] = 0.0
     if f_range is not None:
@@ -307,7 +357,7 @@ def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
         raise RecordError(f"channel {channel!r}: no excitation frequency found (spectrum peak at 0 Hz)")
     tau = t - t[0]
     n_harm = int(max(1, min(FORCE_HARMONICS, np.floor(0.45 / (f0 * dt)))))
-    omega, fraction = _periodic_fit_gn(tau, x, 2 * np.pi * f0, n_harm)
+    omega, fraction = _refine_progressively(tau, x, 2 * np.pi * f0, n_harm)
     if fraction < MIN_SINE_FRACTION or not np.isfinite(omega) or omega <= 0:
         raise RecordError(
             f"channel {channel!r}: no excitation frequency found; the best periodic fit ({f0:.6g} Hz) explains only "
@@ -365,10 +415,18 @@ class StateSignals:
 
     def states(self):
         """``(q, q', q''_filtered)`` at the sample times."""
-        tau = self.t - self.acceleration.t0
+        parts = list(self.blocks(size=self.t.size))
+        return parts[0][1:]
+
+    def blocks(self, size=BLOCK):
+        """Iterate ``(slice, q, q', q''_filtered)`` over blocks of the record."""
+        C = np.column_stack(
+            [self.displacement.coefficients, self.velocity.coefficients, self.acceleration.coefficients]
+        )
         H = self.acceleration.n_harmonics
-        A = _basis(tau, self.omega, H)
-        return A @ self.displacement.coefficients, A @ self.velocity.coefficients, A @ self.acceleration.coefficients
+        for sl in _blocks(self.t.size, size):
+            S = _basis(self.t[sl] - self.acceleration.t0, self.omega, H) @ C
+            yield sl, S[:, 0], S[:, 1], S[:, 2]
 
     def q_max(self) -> float:
         """Steady-state amplitude ``max |q(t)|`` of the reconstructed displacement."""
@@ -416,5 +474,12 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
             f"channel {tname!r}: the record spans {periods:.3g} periods of {frequency_hz:.6g} Hz; "
             f"at least {MIN_PERIODS:g} are needed"
         )
-    series, resid = fit_harmonics(t, accel, 2 * np.pi * frequency_hz, n_harmonics, channel=aname)
+    omega = 2 * np.pi * frequency_hz
+    f_top = n_harmonics * frequency_hz
+    if f_top >= 0.5 / dt:
+        raise RecordError(
+            f"channel {aname!r}: harmonic {n_harmonics} of {frequency_hz:.6g} Hz is at {f_top:.6g} Hz, "
+            f"not below the Nyquist frequency {0.5 / dt:.6g} Hz; sample faster or fit fewer harmonics"
+        )
+    series, resid = _streaming_fit(t - t[0], accel, omega, n_harmonics, float(t[0]), aname)
     return StateSignals(t, force, accel, series, frequency_hz, given, resid)
