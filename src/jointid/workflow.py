@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._blas import single_threaded
 from .errors import IdentificationError, JointidError, JointidWarning, where
 from .identify.fsm import ForceStateMapping, PooledFit, PooledForceStateMapping, RecordFit, band_average
 from .identify.laws import DampingLaw, PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
@@ -241,6 +242,7 @@ def _group_key(value):
     return (0, value) if isinstance(value, (int, float)) else (1, str(value))
 
 
+@single_threaded
 def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) -> CampaignResult:
     """Identify every record of a campaign, then the groups and the laws.
 

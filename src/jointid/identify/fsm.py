@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from ..signal.harmonics import StateSignals
 from .regression import LstsqResult, lstsq_from_reduced, reduce_blocks
@@ -221,6 +222,7 @@ class ForceStateMapping:
         self.cond_limit = cond_limit
         self.filtered = filtered
 
+    @single_threaded
     def fit(self, signals: StateSignals, *, context=""):
         lib = library(self.terms)
         _check_terms(lib, signals.acceleration.n_harmonics)
@@ -401,6 +403,7 @@ class PooledForceStateMapping:
         self.cond_limit = cond_limit
         self.filtered = filtered
 
+    @single_threaded
     def fit(self, signals_list, *, context=""):
         signals_list = list(signals_list)
         if not signals_list:

@@ -78,7 +78,7 @@ def plot_hysteresis(loop, ax=None, label=None, show_identified=True):
     line = ax.plot(q, m, "-", lw=1.2, label=label or f"measured ({kind}) {loop.frequency_hz:.4g} Hz")
     if show_identified:
         i = np.append(loop.identified, loop.identified[:1])
-        ax.plot(q, i, "--", lw=1.2, color=line[0].get_color(), label="identified")
+        ax.plot(q, i, "--", lw=1.2, color="k", label="identified")
     ax.set_xlabel("q")
     ax.set_ylabel("Q - q'' - omega1^2 q")
     ax.grid(True, alpha=0.3)

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg
 
+from .._blas import single_threaded
 from ..conventions import harmonic_index, n_coefficients
 from ..errors import RecordError
 
@@ -198,6 +199,7 @@ def series_max_abs(coefficients, omega=1.0) -> float:
     return float(max(abs(float(s(tt))), abs(x[i])))
 
 
+@single_threaded
 def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tuple[HarmonicSeries, float]:
     """Least-squares fit of ``n_harmonics`` harmonics plus a constant (seed Eq 16).
 
@@ -298,7 +300,7 @@ def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
             break
         step = float(np.clip((Jp @ (x - A @ coef)) / den, -max_step, max_step))
         omega = omega + step
-        if abs(step) < 1e-12 * omega:
+        if abs(step) * tau[-1] < 1e-9:  # phase change over the record below 1e-9 rad
             break
     A = _basis(tau, omega, n_harmonics)
     coef = _gram_lstsq(A, x)
@@ -318,6 +320,7 @@ def _refine_progressively(tau, x, omega, n_harmonics, first=32768, growth=8):
         m = min(n, m * growth)
 
 
+@single_threaded
 def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
     """Excitation frequency [Hz] of a single-frequency force record.
 
@@ -433,6 +436,7 @@ class StateSignals:
         return self.displacement.max_abs()
 
 
+@single_threaded
 def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, channels=("time", "force", "accel")):
     """Validate a steady-state record and reduce it to :class:`StateSignals`.
 
