@@ -132,3 +132,6 @@ periods = 12.5
         assert abs(r["omega1"] / 170 - 1) < 1e-6
     assert (out / "records.csv").is_file() and (out / "groups.csv").is_file()
     assert len(list((out / "figures").glob("*.png"))) >= 4
+    page = (out / "report.html").read_text()
+    assert "cli &lt;test&gt;" in page and "<test>" not in page  # text from input files is escaped
+    assert page.count("data:image/png;base64,") >= 4  # figures embedded: the page opens offline

@@ -9,10 +9,11 @@ import numpy as np
 
 from ..identify.hysteresis import hysteresis_loop
 from ..io.results import atomic_savefig, atomic_write, write_csv, write_json
+from .html import Section, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
 from .tables import group_rows, record_rows
 
-__all__ = ["write_results", "write_figures", "slug"]
+__all__ = ["write_results", "campaign_figures", "campaign_sections", "slug"]
 
 
 def slug(value) -> str:
@@ -20,8 +21,9 @@ def slug(value) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "_", str(value)).strip("_") or "none"
 
 
-def write_results(result, out_dir, figures=True) -> dict:
-    """Write ``results.json``, ``records.csv``, ``groups.csv``, ``report.txt`` and PNG figures.
+def write_results(result, out_dir, figures=True, html=True) -> dict:
+    """Write ``results.json``, ``records.csv``, ``groups.csv``, ``damping_laws.csv``,
+    ``report.txt``, PNG figures and a self-contained ``report.html``.
 
     Returns a dict of the written paths.
     """
@@ -37,14 +39,40 @@ def write_results(result, out_dir, figures=True) -> dict:
                 for p, l in result.damping_laws.items()]
     cols = ["preload"] + [f"c{k}" for k in range(result.settings.damping_order + 1)]
     paths["damping_laws"] = write_csv(out / "damping_laws.csv", law_rows, cols)
+    figs = campaign_figures(result) if (figures or html) else []
     if figures:
-        paths["figures"] = write_figures(result, out / "figures")
+        paths["figures"] = [atomic_savefig(fig, out / "figures" / name, dpi=120) for name, _, fig in figs]
+    if html:
+        paths["html"] = out / "report.html"
+        write_html(paths["html"], f"jointid: {result.name}", campaign_sections(result, figs),
+                   intro=f"{len(result.records)} records, {len(result.failed)} failed.")
     return paths
 
 
-def write_figures(result, fig_dir) -> list:
-    """PNG figures: damping laws, power laws, hysteresis loops and per-record parameters."""
-    fig_dir = Path(fig_dir)
+def campaign_sections(result, figs) -> list:
+    """HTML sections of a campaign result: groups, laws, figures, failures."""
+    groups = Section("Groups", ["Pooled regression over the records of each (preload, force level): shared omega1 "
+                                "and k3, one damping coefficient per record; band averages of single-record fits."])
+    groups.tables.append(("groups", group_rows(result), None))
+    laws = Section("Damping laws and power laws")
+    laws.tables.append(("c(q_max)", [{"preload": p, "law": l.report() if l else result.damping_law_errors.get(p)}
+                                     for p, l in result.damping_laws.items()], None))
+    laws.tables.append(("U = alpha F^n", [{"preload": g.preload, "force level": g.force_level,
+                                           "alpha": g.power_law.alpha if g.power_law else None,
+                                           "n": g.power_law.n if g.power_law else None,
+                                           "n in [2, 3]": g.power_law.within_bounds if g.power_law else None}
+                                          for g in result.groups], None))
+    figures = Section("Figures", figures=[(caption, fig) for _, caption, fig in figs])
+    records = Section("Records")
+    records.tables.append(("records", record_rows(result), ["index", "file", "preload", "force_level", "frequency_hz",
+                                                             "status", "q_max", "omega1", "k3", "c", "c_pooled",
+                                                             "error"]))
+    return [groups, laws, figures, records]
+
+
+def campaign_figures(result) -> list:
+    """``(file name, caption, figure)`` of the damping laws, power laws, per-record
+    parameters and hysteresis loops (filtered and unfiltered) of a campaign result."""
     written = []
     preloads = list(result.damping_laws)
     for p in preloads:
@@ -54,14 +82,14 @@ def write_figures(result, fig_dir) -> list:
             ax = new_axes()
             plot_damping_law(law, ax=ax, label=f"preload {p}")
             ax.set_title(f"damping law, preload {p}")
-            written.append(atomic_savefig(ax.figure, fig_dir / f"damping_law_{slug(p)}.png", dpi=120))
+            written.append((f"damping_law_{slug(p)}.png", f"damping law c(q_max), preload {p}", ax.figure))
         laws = [g for g in groups if g.power_law is not None]
         if laws:
             ax = new_axes()
             for g in laws:
                 plot_power_law(g.power_law, ax=ax, label=f"F = {g.force_level}")
             ax.set_title(f"energy per cycle, preload {p}")
-            written.append(atomic_savefig(ax.figure, fig_dir / f"power_law_{slug(p)}.png", dpi=120))
+            written.append((f"power_law_{slug(p)}.png", f"energy per cycle vs joint force, preload {p}", ax.figure))
         for g in groups:
             members = [r for r in result.records if r.ok and r.spec.group == (g.preload, g.force_level)]
             if not members:
@@ -75,7 +103,8 @@ def write_figures(result, fig_dir) -> list:
                 vals["c"] = [r.fit.c for r in members]
             axes = plot_parameters_vs_frequency(f, vals)
             axes[0].set_title(f"per-record parameters, preload {p}, F = {g.force_level}")
-            written.append(atomic_savefig(axes[0].figure, fig_dir / f"parameters_{tag}.png", dpi=120))
+            written.append((f"parameters_{tag}.png", f"per-record parameters, preload {p}, F = {g.force_level}",
+                            axes[0].figure))
             best = max(members, key=lambda r: r.fit.q_max)
             axes = new_axes(None, figsize=(9.0, 3.8), ncols=2)
             theta = np.array(best.fit.coefficients)
@@ -85,5 +114,6 @@ def write_figures(result, fig_dir) -> list:
                 loop = hysteresis_loop(best.signals, best.fit.terms, theta, filtered=filt)
                 plot_hysteresis(loop, ax=ax, show_identified=True)
             axes[0].set_title(f"hysteresis, {best.spec.file}")
-            written.append(atomic_savefig(axes[0].figure, fig_dir / f"hysteresis_{tag}.png", dpi=120))
+            written.append((f"hysteresis_{tag}.png", f"hysteresis loops (filtered, unfiltered) of {best.spec.file}, "
+                                                     f"preload {p}, F = {g.force_level}", axes[0].figure))
     return written

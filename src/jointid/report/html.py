@@ -1,0 +1,106 @@
+"""Self-contained HTML reports: figures embedded as base64 PNG, every text escaped.
+
+A report is a list of sections; a section has a title, paragraphs, tables (lists of dicts)
+and matplotlib figures.  The page needs no network and no files beside it.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..io.results import atomic_write
+
+__all__ = ["Section", "render_html", "write_html", "figure_to_data_uri"]
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;max-width:1100px;color:#222;
+line-height:1.45;padding:0 1em}
+h1{font-size:1.6em;border-bottom:2px solid #345;padding-bottom:.3em}
+h2{font-size:1.25em;margin-top:2em;color:#234}
+table{border-collapse:collapse;margin:.8em 0;font-size:.9em}
+th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right}
+th{background:#eef2f6}
+td.text{text-align:left}
+figure{display:inline-block;margin:.5em 1em .5em 0;vertical-align:top}
+figure img{max-width:100%;border:1px solid #ddd}
+figcaption{font-size:.85em;color:#555;max-width:520px}
+.note{color:#555;font-size:.9em}
+nav a{margin-right:1em}
+"""
+
+
+@dataclass
+class Section:
+    """One section of a report (built up by the report writer, then rendered once)."""
+
+    title: str
+    paragraphs: list = field(default_factory=list)
+    tables: list = field(default_factory=list)  # (caption, rows: list[dict], columns or None)
+    figures: list = field(default_factory=list)  # (caption, figure)
+
+
+def figure_to_data_uri(fig, dpi=110) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _cell(v) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return "nan" if not np.isfinite(v) else f"{float(v):.6g}"
+    return html.escape(str(v))
+
+
+def _table(caption, rows, columns=None) -> str:
+    if not rows:
+        return f"<p class='note'>{html.escape(caption)}: no rows</p>"
+    columns = columns or list(rows[0])
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in columns)
+    body = []
+    for r in rows:
+        cells = []
+        for c in columns:
+            v = r.get(c)
+            cls = " class='text'" if isinstance(v, str) else ""
+            cells.append(f"<td{cls}>{_cell(v)}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return (f"<table><caption>{html.escape(caption)}</caption><thead><tr>{head}</tr></thead>"
+            f"<tbody>{''.join(body)}</tbody></table>")
+
+
+def render_html(title: str, sections, intro: str = "") -> str:
+    """The whole page as a string."""
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
+    if intro:
+        parts.append(f"<p>{html.escape(intro)}</p>")
+    parts.append("<nav>" + "".join(f"<a href='#s{i}'>{html.escape(s.title)}</a>" for i, s in enumerate(sections))
+                 + "</nav>")
+    for i, s in enumerate(sections):
+        parts.append(f"<h2 id='s{i}'>{html.escape(s.title)}</h2>")
+        parts += [f"<p>{html.escape(p)}</p>" for p in s.paragraphs]
+        parts += [_table(c, rows, cols) for c, rows, cols in s.tables]
+        for caption, fig in s.figures:
+            parts.append(f"<figure><img alt='{html.escape(caption, quote=True)}' src='{figure_to_data_uri(fig)}'>"
+                         f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_html(path, title, sections, intro="") -> None:
+    """Render and write the page atomically."""
+    atomic_write(path, render_html(title, sections, intro))
