@@ -19,6 +19,7 @@ EPILOG = """examples:
   jointid example --out example-out          # the seed paper's numerical example (Tables 1-3, Figs 4-6)
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
+  jointid modal structure.toml --out modal   # FE modes, updating report, mode-shape plots
 """
 
 
@@ -63,7 +64,68 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frequencies", type=int, default=41, help="number of excitation frequencies (default: 41)")
     p.add_argument("--no-figures", action="store_true")
     p.add_argument("--quiet", action="store_true")
+    p = sub.add_parser("modal", help="FE modes, shapes and updating report of a structure description",
+                       epilog="example: jointid modal campaign.toml --out modal-out --frf random.csv --response accel_42",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("structure", type=Path, help="TOML file with a [structure] table (a campaign.toml works)")
+    p.add_argument("--out", type=Path, help="folder for the mode-shape / updating / FRF figures and modal.json")
+    p.add_argument("--frf", type=Path, help="a random-excitation record (CSV: time, force, responses) for H1 and a modal fit")
+    p.add_argument("--response", default=None, help="response column of --frf (default: the first sensor)")
+    p.add_argument("--modes", type=int, default=3, help="modes fitted in the FRF (default: %(default)s)")
     return parser
+
+
+def _modal(args) -> int:
+    import tomllib
+
+    import numpy as np
+
+    from .errors import ManifestError, RecordFileNotFoundError
+    from .io.results import atomic_savefig, write_json
+    from .modal.structure import Structure
+
+    if not args.structure.is_file():
+        raise RecordFileNotFoundError(f"{args.structure}: structure file not found")
+    try:
+        data = tomllib.loads(args.structure.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ManifestError(f"{args.structure}: not valid TOML ({exc})") from exc
+    structure = Structure.from_mapping(data, source=str(args.structure))
+    print(structure.report())
+    summary = {"structure": structure.summary()}
+    figures = []
+    if structure.modes is not None:
+        from .report.modal_plots import plot_mode_shapes
+
+        fig, _ = plot_mode_shapes(structure.modes, sensors=dict(structure.sensors),
+                                  force_position=structure.force_position)
+        figures.append(("mode_shapes.png", fig))
+    if structure.update is not None:
+        from .report.modal_plots import plot_update_residuals
+
+        figures.append(("updating_residuals.png", plot_update_residuals(structure.update)[0]))
+    if args.frf is not None:
+        from .io.campaign import RecordSpec, read_record
+        from .report.modal_plots import plot_frf
+        from .signal.frf import fit_modes, h1_estimate
+
+        column = args.response or next(iter(structure.sensors))
+        spec = RecordSpec(0, str(args.frf), args.frf.resolve(), None, None, None)
+        rec = read_record(spec, required=("time", structure.force_column, column))
+        fs = 1.0 / float(np.mean(np.diff(rec.time)))
+        frf = h1_estimate(rec.channels[structure.force_column], rec.channels[column], fs)
+        fit = fit_modes(frf, args.modes)
+        print(f"\nH1 of {column!r} in {args.frf}: modal fit")
+        for i, (f, z) in enumerate(zip(fit.frequencies_hz, fit.damping_ratios), 1):
+            print(f"  mode {i}: {f:.4f} Hz, damping ratio {100 * z:.3f} %")
+        summary["frf_fit"] = {"frequencies_hz": fit.frequencies_hz, "damping_ratios": fit.damping_ratios}
+        figures.append(("frf.png", plot_frf(frf, fit=fit)[0]))
+    if args.out is not None:
+        write_json(args.out / "modal.json", summary)
+        for name, fig in figures:
+            atomic_savefig(fig, args.out / name, dpi=120)
+        print(f"\nwritten to {args.out}")
+    return EXIT_OK
 
 
 def _identify(args) -> int:
@@ -100,7 +162,7 @@ def _example(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
-COMMANDS = {"identify": _identify, "simulate": _simulate, "example": _example}
+COMMANDS = {"identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
 
 
 def main(argv=None) -> int:
@@ -115,6 +177,12 @@ def main(argv=None) -> int:
         except JointidError as exc:
             print(f"jointid {args.command}: error: {exc}", file=sys.stderr)
             return EXIT_INPUT
+        except Exception:  # an unexpected failure: say so, with the traceback, and a distinct code
+            import traceback
+
+            traceback.print_exc()
+            print(f"jointid {args.command}: internal error (please report it with the traceback above)", file=sys.stderr)
+            return EXIT_INTERNAL
 
 
 if __name__ == "__main__":  # pragma: no cover

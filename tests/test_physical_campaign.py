@@ -1,0 +1,59 @@
+"""A physical campaign (force + two accelerometers) gives the same identification as the modal one."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from jointid.cli import main
+from jointid.examples import paper_config
+from jointid.errors import StructureError
+from jointid.io.campaign import load_campaign, read_record, write_campaign, write_csv_record
+from jointid.modal.structure import Structure
+from jointid.synthesis import load_simulation_config, simulate_campaign
+from jointid.workflow import identify_campaign
+
+STRUCTURE = {"model": "seed-bolted-beam", "preload": 120, "force_column": "force",
+             "sensors": {"accel_30": 0.30, "accel_42": 0.42}}
+
+
+def test_physical_campaign_matches_modal(tmp_path):
+    cfg = paper_config(n_frequencies=11, noise=0.0, periods=12)
+    modal = simulate_campaign(load_simulation_config(cfg), tmp_path / "modal")
+    structure = Structure.from_mapping(STRUCTURE, source="test")
+    phi_f = structure.phi_force[0]
+    phi_s = dict(zip(structure.sensors, structure.phi_sensors[:, 0]))
+    entries = []
+    for spec in load_campaign(modal).records:
+        rec = read_record(spec)
+        Q, qdd = rec.channels["force"], rec.channels["accel"]
+        write_csv_record(tmp_path / "phys" / spec.file, rec.time,
+                         {"force": Q / phi_f, "accel_30": phi_s["accel_30"] * qdd, "accel_42": phi_s["accel_42"] * qdd})
+        entries.append({"file": spec.file, "frequency_hz": spec.frequency_hz, "force_level": spec.force_level,
+                        "preload": spec.preload})
+    write_campaign(tmp_path / "phys", "physical", entries, coordinates="physical", structure=STRUCTURE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rm = identify_campaign(modal, n_harmonics=7)
+        rp = identify_campaign(tmp_path / "phys", n_harmonics=7)
+    gm, gp = rm.groups[0], rp.groups[0]
+    assert gp.pooled.omega1 == pytest.approx(gm.pooled.omega1, rel=1e-10)
+    assert gp.pooled.k3 == pytest.approx(gm.pooled.k3, rel=1e-7)
+    assert np.allclose(gp.pooled.get("c"), gm.pooled.get("c"), rtol=1e-8)
+    assert all(r.modal_residual < 1e-12 for r in rp.records)
+    assert main(["identify", str(tmp_path / "phys"), "--out", str(tmp_path / "o"), "--quiet", "--no-figures"]) == 0
+
+
+def test_physical_campaign_bad_structure_and_columns(tmp_path):
+    t = np.arange(2000) / 1000.0
+    write_csv_record(tmp_path / "r.csv", t, {"force": np.sin(2 * np.pi * 26 * t), "accel_30": np.sin(2 * np.pi * 26 * t)})
+    bad = dict(STRUCTURE, sensors={"accel_30": 0.30, "accel_42": 0.42})
+    write_campaign(tmp_path, "missing sensor column", [{"file": "r.csv", "preload": 1, "force_level": 1}],
+                   coordinates="physical", structure=bad)
+    with pytest.warns(Warning):
+        res = identify_campaign(tmp_path)
+    assert res.records[0].status == "failed" and "accel_42" in res.records[0].error
+    outside = dict(STRUCTURE, sensors={"accel_99": 0.99})
+    write_campaign(tmp_path, "bad", [{"file": "r.csv"}], coordinates="physical", structure=outside)
+    with pytest.raises(StructureError, match="accel_99"):
+        identify_campaign(tmp_path)
