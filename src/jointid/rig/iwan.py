@@ -343,7 +343,8 @@ class JenkinsElements:
         seen = history >= 0
         rows = np.broadcast_to(np.arange(N)[:, None], history.shape)
         weights = np.broadcast_to(k, history.shape)
-        Dr = -np.bincount((rows * N + history)[seen], weights=weights[seen], minlength=N * N).reshape(N, N)
+        Dr = -np.bincount((rows * N + history)[seen], weights=weights[seen], minlength=N * N).astype(float)
+        Dr = Dr.reshape(N, N)
         Dr[np.arange(N), np.arange(N)] += self._k_total
         k_never = float(k[~slipping].sum())
         if k_never:
