@@ -1,0 +1,1429 @@
+"""Harmonic balance (alternating frequency/time) for the single-mode model.
+
+Solves the periodic steady state of
+
+    ``q'' + h(q, q'; theta) = F sin(omega t)``
+
+where ``h`` is the model's term library and ``theta`` its coefficients (seed paper
+Eq 19).  The unknown is the harmonic coefficient vector of ``q`` in the convention of
+:mod:`jointid.conventions` (``[a0, a1, b1, ..., aH, bH]``).  The restoring force is
+evaluated in time on an equispaced grid of one period and projected back on the
+harmonics (AFT); the Jacobian is built analytically from the terms' partial
+derivatives (the values of :meth:`jointid.identify.terms.TermLibrary.derivatives`; each
+term's ``dq``/``dv`` is called directly to avoid per-call overhead) through the same
+transforms.  For odd libraries only odd harmonics are solved for.
+
+Amplitude closure
+    When the model has amplitude laws (seed Eq 20) the coefficients of a steady state
+    are ``model.coefficients_at(q_max)`` with ``q_max = max_t |q(t)|`` of that same
+    steady state.  ``q_max`` is then an extra unknown with the extra equation
+    ``q_max - max_t |q(t)| = 0``; the maximum is found to machine precision (dense grid
+    then Newton on ``dq/dt = 0``) and, by the envelope theorem, its derivative with
+    respect to the coefficients is ``sign(q(t*)) * basis(t*)``.
+
+Public functions
+    :func:`steady_state` (one frequency), :func:`frequency_response` (a sequential
+    sweep at given frequencies, or pseudo-arclength continuation over a range with fold
+    detection), :func:`linear_frf` (the linear part's receptance, for "linear vs
+    nonlinear" plots as in the seed's Fig 4).
+
+Examples
+--------
+>>> from jointid.simulate.model import seed_model
+>>> s = steady_state(seed_model(), 169.5, 1.0)
+>>> round(s.q_max * 1e3, 4)
+6.333
+>>> bool(s.stable)
+True
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+from .._blas import single_threaded
+from ..conventions import harmonic_index, n_coefficients
+from ..errors import ConvergenceError, ConvergenceWarning, RecordError
+from .model import SingleModeModel
+
+__all__ = [
+    "SteadyState",
+    "FrequencyResponse",
+    "steady_state",
+    "frequency_response",
+    "linear_frf",
+    "default_n_time",
+]
+
+_TINY = 1e-300
+
+
+# ----------------------------------------------------------------------------------------
+# Harmonic bases (built lazily, cached per (H, N))
+# ----------------------------------------------------------------------------------------
+
+
+def default_n_time(n_harmonics: int) -> int:
+    """Default number of time samples per period used by the AFT.
+
+    A power of two (rfft-friendly) of at least ``8 (H + 1)``: exact (alias-free) for
+    polynomial restoring forces up to degree 7, small aliasing for non-smooth terms.
+    """
+    return int(2 ** math.ceil(math.log2(max(8 * (n_harmonics + 1), 16))))
+
+
+def _readonly(a):
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
+
+
+@functools.lru_cache(maxsize=64)
+def _basis(n_harmonics: int, n_time: int):
+    """Time basis ``E`` (N, n), derivative ``D`` (n, n) and projection ``P`` (n, N)."""
+    H, N = n_harmonics, n_time
+    n = n_coefficients(H)
+    tau = 2.0 * np.pi * np.arange(N) / N
+    kt = np.outer(tau, np.arange(1, H + 1))
+    E = np.empty((N, n))
+    E[:, 0] = 1.0
+    E[:, 1::2] = np.cos(kt)
+    E[:, 2::2] = np.sin(kt)
+    D = np.zeros((n, n))
+    j = np.arange(1, H + 1)
+    D[2 * j - 1, 2 * j] = j  # d/dtau (b sin) -> b k cos
+    D[2 * j, 2 * j - 1] = -j  # d/dtau (a cos) -> -a k sin
+    P = E.T * (2.0 / N)
+    P[0] *= 0.5
+    return _readonly(E), _readonly(D), _readonly(P)
+
+
+def _basis_at(tau, n_harmonics):
+    """Rows of the time basis at phases ``tau`` (array) -> (len(tau), n)."""
+    tau = np.atleast_1d(np.asarray(tau, float))
+    kt = np.multiply.outer(tau, np.arange(1, n_harmonics + 1))
+    out = np.empty(tau.shape + (n_coefficients(n_harmonics),))
+    out[..., 0] = 1.0
+    out[..., 1::2] = np.cos(kt)
+    out[..., 2::2] = np.sin(kt)
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _product_gather(n_harmonics: int, idx: tuple):
+    """Gather indices expressing ``P diag(h) E`` (rows/columns ``idx``) by the spectrum of ``h``.
+
+    With ``A_m = (2/N) sum h cos(m tau)`` and ``B_m = (2/N) sum h sin(m tau)``
+    (``m = 0 .. 2H``) stacked as ``S = [A, B]``, the product-to-sum identities give every
+    entry as ``w1 S[i1] + w2 S[i2]``; returns ``(i1, w1, i2, w2)`` of shape ``(n, n)``.
+    """
+    H = n_harmonics
+    k_all = harmonic_index(H)
+    pos = np.arange(n_coefficients(H))
+    kind_all = np.where(pos == 0, 0, np.where(pos % 2 == 1, 1, 2))  # const, cos, sin
+    idx = np.asarray(idx)
+    k, kind = k_all[idx], kind_all[idx]
+    L = 2 * H + 1
+    n = idx.size
+    i1 = np.zeros((n, n), int)
+    i2 = np.zeros((n, n), int)
+    w1 = np.zeros((n, n))
+    w2 = np.zeros((n, n))
+    for r in range(n):
+        kr, tr = int(k[r]), int(kind[r])
+        half = 0.25 if tr == 0 else 0.5  # constant row projects with 1/N, others 2/N
+        for c in range(n):
+            kc, tc = int(k[c]), int(kind[c])
+            d, s_ = abs(kr - kc), kr + kc
+            if tr in (0, 1) and tc in (0, 1):  # cos.cos
+                i1[r, c], w1[r, c], i2[r, c], w2[r, c] = d, half, s_, half
+            elif tr in (0, 1) and tc == 2:  # cos k . sin l = (sin(l+k) + sin(l-k)) / 2
+                i1[r, c], w1[r, c] = L + s_, half
+                i2[r, c], w2[r, c] = L + d, half * np.sign(kc - kr)
+            elif tr == 2 and tc in (0, 1):  # sin k . cos l = (sin(k+l) + sin(k-l)) / 2
+                i1[r, c], w1[r, c] = L + s_, half
+                i2[r, c], w2[r, c] = L + d, half * np.sign(kr - kc)
+            else:  # sin.sin = (cos(k-l) - cos(k+l)) / 2
+                i1[r, c], w1[r, c], i2[r, c], w2[r, c] = d, half, s_, -half
+    return i1, w1, i2, w2
+
+
+def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
+    """``max_tau |q(tau)|`` of a harmonic series to machine precision.
+
+    ``x`` is the (possibly reduced) coefficient vector, ``kh`` the harmonic numbers of
+    its (cosine, sine) pairs, ``a_idx``/``b_idx``/``const_idx`` the positions of the
+    cosine, sine and constant entries and ``E_dense`` the time basis on a dense grid.
+    The grid maximum is refined by a parabola through its neighbours, then by Newton
+    on ``dq/dtau = 0`` (quadratic convergence: the value error is the square of the
+    phase error).  Returns ``(value, tau, sign)``.
+    """
+    qd = E_dense @ x
+    aq = np.abs(qd)
+    i = int(np.argmax(aq))
+    M = qd.size
+    h = 2.0 * np.pi / M
+    y0, y1, y2 = aq[i - 1], aq[i], aq[(i + 1) % M]
+    den = y0 - 2.0 * y1 + y2
+    tau0 = i * h
+    tau = tau0 + (0.5 * h * (y0 - y2) / den if den < 0.0 else 0.0)
+    a, b = x[a_idx], x[b_idx]
+    ka, kb = kh * a, kh * b
+    kka, kkb = kh * ka, kh * kb
+    for _ in range(8):
+        e = np.exp(1j * tau * kh)
+        c, s = e.real, e.imag
+        d2 = -(kka @ c + kkb @ s)
+        if d2 == 0.0:
+            break
+        step = (kb @ c - ka @ s) / d2
+        tau -= step
+        if abs(tau - tau0) > h:  # left the neighbourhood of the grid maximum
+            tau = tau0
+            break
+        if abs(step) < 1e-8:  # next correction ~ step^2: below round-off in the value
+            break
+    e = np.exp(1j * tau * kh)
+    q_tau = a @ e.real + b @ e.imag + float(np.sum(x[const_idx]))
+    if abs(q_tau) < y1:  # never worse than the grid (guards a stray Newton)
+        tau, q_tau = tau0, float(qd[i])
+    return abs(q_tau), tau, (1.0 if q_tau >= 0 else -1.0)
+
+
+# ----------------------------------------------------------------------------------------
+# Problem context: everything that does not change with omega
+# ----------------------------------------------------------------------------------------
+
+
+class _Problem:
+    """AFT residual/Jacobian of one model, force level and harmonic truncation.
+
+    The unknown ``z`` is the coefficient vector restricted to the active harmonics
+    (odd harmonics only for odd libraries) followed by ``q_max`` when the amplitude
+    closure is active.
+    """
+
+    def __init__(self, model, force_amplitude, n_harmonics, n_time=None, odd=None):
+        if not isinstance(model, SingleModeModel):
+            raise TypeError(f"model must be a SingleModeModel, got {type(model).__name__}")
+        H = int(n_harmonics)
+        if H < 1:
+            raise RecordError(f"n_harmonics must be >= 1, got {n_harmonics!r}")
+        F = float(force_amplitude)
+        if not np.isfinite(F):
+            raise RecordError(f"force_amplitude must be finite, got {force_amplitude!r}")
+        N = default_n_time(H) if n_time is None else int(n_time)
+        if N < 2 * H + 2:
+            raise RecordError(f"n_time must be > 2 n_harmonics + 1 = {2 * H + 1}, got {N}")
+        self.model = model
+        self.lib = model.terms
+        self.F = F
+        self.H = H
+        self.N = N
+        self.n = n_coefficients(H)
+        self.closure = model.depends_on_amplitude
+        self.odd = self.lib.odd if odd is None else bool(odd)
+        kfull = harmonic_index(H)
+        active = (kfull % 2 == 1) if self.odd else np.ones(self.n, bool)
+        self.active = np.flatnonzero(active)
+        self.k = kfull[self.active]
+        E, D, P = _basis(H, N)
+        self.E_full, self.D_full, self.P_full = E, D, P
+        self.ED_full = E @ D
+        self.E = np.ascontiguousarray(E[:, self.active])
+        self.ED = np.ascontiguousarray(self.ED_full[:, self.active])
+        self.P = np.ascontiguousarray(P[self.active])
+        self.k2 = self.k.astype(float) ** 2
+        self.m = self.active.size + (1 if self.closure else 0)
+        # positions (in the reduced vector) of cosine / sine entries with k >= 1
+        pos = np.arange(self.active.size)
+        full_pos = self.active
+        self.a_idx = pos[(full_pos % 2 == 1)]
+        self.b_idx = pos[(full_pos % 2 == 0) & (full_pos > 0)]
+        self.const_idx = pos[full_pos == 0]
+        self.kh = self.k[self.a_idx].astype(float)  # harmonic number of each (a, b) pair
+        M = max(2 * N, 256)
+        self.E_dense = np.ascontiguousarray(_basis_at(2 * np.pi * np.arange(M) / M, H)[:, self.active])
+        fvec = np.zeros(self.active.size)
+        fvec[pos[full_pos == 2]] = F  # b1
+        self.f = fvec
+        self.theta0 = np.array(model.coefficients, float)
+        # derivative polynomials of the amplitude laws (d theta_j / d q_max)
+        P_ = np.polynomial.polynomial
+        self.law_der = tuple(
+            (self.lib.index(name), P_.polyder(np.asarray(poly, float))) for name, poly in model.amplitude_laws.items()
+        )
+        # terms with analytic partial derivatives are called directly (same values as
+        # TermLibrary.derivatives, without its per-call broadcasting overhead)
+        self.fast_terms = tuple((j, t.func, t.dq, t.dv) for j, t in enumerate(self.lib.terms))
+        # odd harmonic symmetry splits Hill's matrix into odd / even harmonic blocks
+        kfull_ = harmonic_index(H)
+        self.hill_blocks = (
+            (np.flatnonzero(kfull_ % 2 == 1), np.flatnonzero(kfull_ % 2 == 0)) if self.odd else (np.arange(self.n),)
+        )
+        names = self.lib.names
+        self.i_q = names.index("q") if "q" in names else None
+        self.i_v = names.index("q'") if "q'" in names else None
+        self._last_failure = ""
+
+    # -- small helpers ---------------------------------------------------------------
+
+    def full(self, x):
+        out = np.zeros(self.n)
+        out[self.active] = x
+        return out
+
+    def reduce(self, coefficients):
+        c = np.asarray(coefficients, float)
+        full = np.zeros(self.n)
+        m = min(c.size, self.n)
+        full[:m] = c[:m]
+        return full[self.active]
+
+    def peak(self, x):
+        return _peak(x, self.kh, self.a_idx, self.b_idx, self.const_idx, self.E_dense)
+
+    def peak_row(self, tau):
+        row = np.zeros(self.active.size)
+        row[self.a_idx] = np.cos(self.kh * tau)
+        row[self.b_idx] = np.sin(self.kh * tau)
+        row[self.const_idx] = 1.0
+        return row
+
+    def scales(self, z, omega):
+        x = z[: self.active.size]
+        xn = float(np.sqrt(x @ x))
+        kq = abs(self.theta0[self.i_q]) if self.i_q is not None else 0.0
+        return max(abs(self.F), (omega * omega + kq) * xn, _TINY), max(xn, _TINY)
+
+    # -- residual and Jacobian -------------------------------------------------------
+
+    def _forces(self, q, v, theta):
+        """``h`` at the time samples."""
+        h = np.zeros_like(q)
+        for j, func, _, _ in self.fast_terms:
+            c = theta[j]
+            if c != 0.0:
+                h += c * func(q, v)
+        return h
+
+    def _derivatives(self, q, v, theta):
+        """``(dh/dq, dh/dv)`` at the time samples (as TermLibrary.derivatives)."""
+        gq = np.zeros_like(q)
+        gv = np.zeros_like(q)
+        for j, _, dq, dv in self.fast_terms:
+            c = theta[j]
+            if c == 0.0:
+                continue
+            if dq is not None and dv is not None:
+                gq += c * dq(q, v)
+                gv += c * dv(q, v)
+            else:
+                a, b = self.lib.terms[j].derivatives(q, v)
+                gq += c * a
+                gv += c * b
+        return gq, gv
+
+    def evaluate(self, z, omega, jacobian=True, domega=False):
+        """Residual ``R(z)`` and (optionally) ``dR/dz`` and ``dR/domega``.
+
+        Returns a dict with ``R``, ``err`` (scaled residual norm), ``q``, ``v``,
+        ``theta``, ``peak`` and, when asked, ``J`` and ``Jw`` (see :meth:`jacobian`).
+        """
+        nx = self.active.size
+        x = z[:nx]
+        theta = self.model.coefficients_at(z[nx]) if self.closure else self.theta0
+        q = self.E @ x
+        dv = self.ED @ x
+        v = omega * dv
+        h = self._forces(q, v, theta)
+        R = np.empty(self.m)
+        R[:nx] = self.P @ h - (omega * omega) * self.k2 * x - self.f
+        peak = None
+        if self.closure:
+            peak = self.peak(x)
+            R[nx] = z[nx] - peak[0]
+        sR, sx = self.scales(z, omega)
+        err = float(np.sqrt(R[:nx] @ R[:nx])) / sR
+        if self.closure:
+            err = max(err, abs(R[nx]) / sx)
+        if not np.isfinite(err):
+            err = np.inf
+        ev = {"z": z, "omega": omega, "q": q, "v": v, "dv": dv, "theta": theta, "R": R, "err": err,
+              "peak": peak, "J": None, "Jw": None}
+        if jacobian or domega:
+            self.jacobian(ev, domega)
+        return ev
+
+    def jacobian(self, ev, domega=False):
+        """Add ``J = dR/dz`` (and ``Jw = dR/domega``) to an evaluation ``ev``."""
+        nx = self.active.size
+        z, omega, q, v, theta = ev["z"], ev["omega"], ev["q"], ev["v"], ev["theta"]
+        hq, hv = self._derivatives(q, v, theta)
+        J = np.empty((self.m, self.m))
+        J[:nx, :nx] = self.P @ (hq[:, None] * self.E + (omega * hv)[:, None] * self.ED)
+        J[np.arange(nx), np.arange(nx)] -= omega * omega * self.k2
+        if self.closure:
+            qm = z[nx]
+            dh = np.zeros_like(q)
+            for j, dpoly in self.law_der:
+                d = float(np.polynomial.polynomial.polyval(qm, dpoly))
+                if d != 0.0:
+                    dh += d * self.lib.terms[j].func(q, v)
+            J[:nx, nx] = self.P @ dh
+            peak = ev["peak"]
+            J[nx, :nx] = -peak[2] * self.peak_row(peak[1])
+            J[nx, nx] = 1.0
+        ev["J"] = J
+        if domega:
+            Jw = np.zeros(self.m)
+            Jw[:nx] = self.P @ (hv * ev["dv"]) - 2.0 * omega * self.k2 * z[:nx]
+            ev["Jw"] = Jw
+        return ev
+
+    # -- Newton at fixed frequency ---------------------------------------------------
+
+    def newton(self, z0, omega, tol=1e-12, max_iter=40):
+        """Damped Newton; returns ``(z, evaluation, iterations)`` or raises.
+
+        Trial points are evaluated without Jacobian; it is built only for points that
+        are accepted and not yet converged.
+        """
+        z = np.array(z0, float)
+        ev = self.evaluate(z, omega, jacobian=False)
+        it = 0
+        while ev["err"] > tol:
+            if it >= max_iter:
+                raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "iteration limit reached"))
+            it += 1
+            if ev["J"] is None:
+                self.jacobian(ev)
+            try:
+                step = np.linalg.solve(ev["J"], -ev["R"])
+            except np.linalg.LinAlgError:
+                raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "singular Jacobian")) from None
+            if not np.all(np.isfinite(step)):
+                raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "non-finite Newton step"))
+            lam = 1.0
+            for _ in range(12):
+                trial = z + lam * step
+                ev_t = self.evaluate(trial, omega, jacobian=False)
+                if ev_t["err"] < ev["err"] or ev_t["err"] <= tol:
+                    break
+                lam *= 0.5
+            else:
+                raise ConvergenceError(
+                    self._fail_msg(omega, ev["err"], it, tol, "no decrease of the residual along the Newton step")
+                )
+            z, ev = trial, ev_t
+        return z, ev, it
+
+    def _fail_msg(self, omega, err, it, tol, why):
+        self._last_failure = f"{why} after {it} iterations, scaled residual {err:.3g} > tol {tol:.1g}"
+        return (
+            f"harmonic balance did not converge at omega={omega:.6g} rad/s, F={self.F:.6g} "
+            f"(n_harmonics={self.H}): {why} after {it} iterations, scaled residual {err:.3g} > tol {tol:.1g}. "
+            "Try a closer `guess` (e.g. the solution at a neighbouring frequency), more harmonics, "
+            "or frequency_response(..., omega_range=...) which follows folds by continuation; "
+            "a softening model driven past its escape threshold has no periodic solution."
+        )
+
+    # -- initial guesses --------------------------------------------------------------
+
+    def linear_guess(self, omega, force=None):
+        F = self.F if force is None else force
+        A = _linear_closure_amplitude(self.model, omega, F)
+        X = linear_frf(self.model, omega, F, q_max=A)
+        full = np.zeros(self.n)
+        full[1], full[2] = X.imag, X.real  # q = Im(X e^{i w t}) = Re X sin + Im X cos
+        z = full[self.active]
+        if self.closure:
+            z = np.append(z, A)
+        return z
+
+    def describing_guesses(self, omega, n_amplitudes=400, n_phase=64):
+        """Single-harmonic (describing-function) solutions, lowest amplitude first.
+
+        With ``q = A sin(psi)`` the restoring force's first harmonic defines an
+        equivalent stiffness ``K(A)`` and damping ``C(A)`` (laws evaluated at
+        ``q_max = A``); the amplitude equation ``A |K - omega^2 + i omega C| = |F|`` is
+        scanned on a log grid of ``A`` and every root refined.  Returns reduced
+        unknown vectors.
+        """
+        F = self.F
+        if F == 0.0:
+            return [np.zeros(self.m)]
+        kq = abs(self.theta0[self.i_q]) if self.i_q is not None else 0.0
+        a_lo = 1e-2 * abs(F) / (kq + omega * omega)  # well below any forced response
+        A = np.geomspace(a_lo, a_lo * 1e8, n_amplitudes)
+        psi = 2.0 * np.pi * np.arange(n_phase) / n_phase
+        sn, cs = np.sin(psi), np.cos(psi)
+        P_ = np.polynomial.polynomial
+
+        def keq_ceq(A):
+            A = np.atleast_1d(A)
+            th = np.tile(self.theta0, (A.size, 1))
+            for name, poly in self.model.amplitude_laws.items():
+                th[:, self.lib.index(name)] = P_.polyval(A, poly)
+            q = A[:, None] * sn
+            v = (A * omega)[:, None] * cs
+            h = np.zeros_like(q)
+            for j, func, _, _ in self.fast_terms:
+                cj = th[:, j]
+                if np.any(cj != 0.0):
+                    h += cj[:, None] * func(q, v)
+            K = (h @ sn) * (2.0 / n_phase) / A
+            C = (h @ cs) * (2.0 / n_phase) / (A * omega)
+            return K, C
+
+        def g(A):
+            K, C = keq_ceq(A)
+            return A * np.hypot(K - omega * omega, omega * C) - abs(F)
+
+        gA = g(A)
+        ok = np.isfinite(gA)
+        roots = []
+        for i in np.flatnonzero(ok[:-1] & ok[1:] & (np.sign(gA[:-1]) != np.sign(gA[1:]))):
+            try:
+                roots.append(optimize.brentq(lambda a: float(g(a)[0]), A[i], A[i + 1], rtol=1e-12))
+            except (ValueError, RuntimeError):
+                roots.append(0.5 * (A[i] + A[i + 1]))
+        out = []
+        for a in roots:
+            K, C = keq_ceq(a)
+            phi = math.atan2(-float(C[0]) * omega * a / F, (float(K[0]) - omega * omega) * a / F)
+            full = np.zeros(self.n)
+            full[1], full[2] = a * math.sin(phi), a * math.cos(phi)
+            z = full[self.active]
+            if self.closure:
+                z = np.append(z, a)
+            out.append(z)
+        return out
+
+    def fresh(self, omega, tol=1e-12, max_iter=40):
+        """Solve without a guess.
+
+        Tries, in order: the describing-function solutions (lowest amplitude first),
+        the linear part's response, and a homotopy in the force level.
+        """
+        tried = []
+        for z0 in self.describing_guesses(omega) + [self.linear_guess(omega)]:
+            try:
+                return self.newton(z0, omega, tol, max_iter)
+            except ConvergenceError:
+                tried.append(self._last_failure)
+        try:
+            return self._force_homotopy(omega, tol, max_iter)
+        except ConvergenceError as exc:
+            raise ConvergenceError(
+                f"harmonic balance found no steady state at omega={omega:.6g} rad/s, F={self.F:.6g} "
+                f"(n_harmonics={self.H}, tol={tol:g}, max_iter={max_iter}): Newton failed from {len(tried)} "
+                f"starting points (describing-function and linearised; first: {tried[0]}) and {exc}"
+            ) from None
+
+    def _force_homotopy(self, omega, tol, max_iter):
+        F_target = self.F
+        s = 1e-3
+        sub = _Problem.__new__(_Problem)
+        sub.__dict__.update(self.__dict__)
+        sub.f = self.f * s
+        sub.F = F_target * s
+        try:
+            z, _, _ = sub.newton(self.linear_guess(omega, F_target * s), omega, tol, max_iter)
+            ds = 0.25
+            zprev, sprev = None, None
+            while s < 1.0:
+                s_new = min(1.0, s * math.exp(ds * math.log(1e3)))
+                guess = z if zprev is None else z + (z - zprev) * (s_new - s) / (s - sprev)
+                sub.f = self.f * s_new
+                sub.F = F_target * s_new
+                try:
+                    z_new, _, _ = sub.newton(guess, omega, tol, max_iter)
+                except ConvergenceError:
+                    ds *= 0.5
+                    if ds < 1e-3:
+                        raise
+                    continue
+                zprev, sprev, z, s = z, s, z_new, s_new
+                ds = min(ds * 1.5, 0.25)
+        except ConvergenceError:
+            raise ConvergenceError(
+                f"the homotopy in the force level stalled at F={s * F_target:.4g}. "
+                "Try a closer `guess` (e.g. the solution at a neighbouring frequency), more harmonics, or "
+                "frequency_response(..., omega_range=...), which follows folds by continuation; a softening "
+                "model driven past its escape threshold has no periodic solution."
+            ) from None
+        return self.newton(z, omega, tol, max_iter)
+
+    # -- results ------------------------------------------------------------------------
+
+    def hill(self, x_full, omega, theta):
+        """Floquet exponents of one steady state (see :meth:`hill_batch`)."""
+        return self.hill_batch(np.atleast_2d(x_full), np.atleast_1d(omega), np.atleast_2d(theta))[0]
+
+    def hill_batch(self, coefs, omegas, thetas, chunk=256):
+        """Floquet exponents by Hill's method for many steady states at once.
+
+        Perturbations ``e^{lambda t} p(t)`` with ``p`` a harmonic series give the
+        quadratic eigenvalue problem ``(lambda^2 I + lambda (2 omega D + C_v) + J) p = 0``
+        (``J`` the harmonic-balance Jacobian without closure, ``C_v`` the projected
+        ``dh/dq'``), solved in companion form; the two exponents with the smallest
+        ``|imag|`` are kept (largest real part first).  With odd symmetry the matrix
+        splits into odd and even harmonic blocks whose spectra are pooled.  The
+        amplitude closure is frozen: ``thetas`` stay fixed.
+
+        Returns a complex array ``(n_points, 2)``.
+        """
+        coefs = np.asarray(coefs, float)
+        omegas = np.asarray(omegas, float)
+        thetas = np.asarray(thetas, float)
+        out = np.empty((coefs.shape[0], 2), complex)
+        E, ED, D = self.E_full, self.ED_full, self.D_full
+        kk = harmonic_index(self.H).astype(float) ** 2
+        for s0 in range(0, coefs.shape[0], chunk):
+            sl = slice(s0, s0 + chunk)
+            c, w, th = coefs[sl], omegas[sl], thetas[sl]
+            q = c @ E.T
+            v = w[:, None] * (c @ ED.T)
+            hq = np.zeros_like(q)
+            hv = np.zeros_like(q)
+            for j, _, dq, dv in self.fast_terms:
+                cj = th[:, j]
+                if not np.any(cj != 0.0):
+                    continue
+                if dq is not None and dv is not None:
+                    gq, gv = dq(q, v), dv(q, v)
+                else:
+                    gq, gv = self.lib.terms[j].derivatives(q, v)
+                hq += cj[:, None] * gq
+                hv += cj[:, None] * gv
+            L = 2 * self.H + 1
+            spec_q = np.fft.rfft(hq, axis=1)[:, :L] * (2.0 / self.N)
+            spec_v = np.fft.rfft(hv, axis=1)[:, :L] * (2.0 / self.N)
+            Sq = np.concatenate([spec_q.real, -spec_q.imag], axis=1)
+            Sv = np.concatenate([spec_v.real, -spec_v.imag], axis=1)
+            lams = []
+            for idx in self.hill_blocks:
+                n = idx.size
+                Db = D[np.ix_(idx, idx)]
+                i1, w1, i2, w2 = _product_gather(self.H, tuple(idx.tolist()))
+                Cv = Sv[:, i1] * w1 + Sv[:, i2] * w2  # P diag(hv) E, block rows/cols
+                Cq = Sq[:, i1] * w1 + Sq[:, i2] * w2
+                J0 = Cq + w[:, None, None] * (Cv @ Db)
+                J0[:, np.arange(n), np.arange(n)] -= (w * w)[:, None] * kk[idx]
+                A = np.zeros((c.shape[0], 2 * n, 2 * n))
+                A[:, :n, n:] = np.eye(n)
+                A[:, n:, :n] = -J0
+                A[:, n:, n:] = -(2.0 * w[:, None, None] * Db + Cv)
+                lams.append(np.linalg.eigvals(A))
+            lam = np.concatenate(lams, axis=1)
+            lam = np.take_along_axis(lam, np.argsort(np.abs(lam.imag), axis=1, kind="stable")[:, :2], axis=1)
+            out[sl] = np.take_along_axis(lam, np.argsort(-lam.real, axis=1, kind="stable"), axis=1)
+        return out
+
+    def state(self, z, omega, ev, iterations, stability=True):
+        nx = self.active.size
+        x_full = self.full(z[:nx])
+        if self.closure:
+            q_max = float(z[nx])
+        else:
+            q_max = float(ev["peak"][0]) if ev.get("peak") is not None else float(self.peak(z[:nx])[0])
+        theta = self.model.coefficients_at(q_max) if self.closure else self.theta0.copy()
+        stable = floquet = None
+        if stability:
+            floquet = self.hill(x_full, omega, theta)
+            stable = bool(np.max(floquet.real) < 0.0)
+        return SteadyState(
+            omega=float(omega),
+            force_amplitude=self.F,
+            coefficients=_readonly(x_full),
+            n_harmonics=self.H,
+            q_max=q_max,
+            theta=_readonly(theta),
+            residual_norm=float(ev["err"]),
+            stable=stable,
+            iterations=int(iterations),
+            model=self.model,
+            floquet_exponents=None if floquet is None else _readonly(floquet),
+        )
+
+
+def _linear_closure_amplitude(model, omega, F):
+    """Amplitude of the linear part with its laws closed on its own amplitude.
+
+    Only the ``q`` and ``q'`` coefficients are kept; used for initial guesses.
+    """
+    F = abs(F)
+    if F == 0.0:
+        return 0.0
+    if not model.depends_on_amplitude:
+        return float(abs(linear_frf(model, omega, F, q_max=0.0)))
+
+    def g(A):
+        return A * abs(1.0 / linear_frf(model, omega, 1.0, q_max=A)) - F
+
+    lo, hi = 0.0, F / max(abs(1.0 / linear_frf(model, omega, 1.0, q_max=0.0)), _TINY)
+    for _ in range(200):
+        if g(hi) > 0.0:
+            break
+        lo, hi = hi, hi * 2.0
+    else:
+        return hi
+    try:
+        return float(optimize.brentq(g, lo, hi, xtol=1e-14 * hi, rtol=1e-12))
+    except (ValueError, RuntimeError):
+        return hi
+
+
+# ----------------------------------------------------------------------------------------
+# Results
+# ----------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class SteadyState:
+    """A periodic steady state found by harmonic balance.
+
+    Attributes
+    ----------
+    omega : float
+        Excitation frequency [rad/s].
+    force_amplitude : float
+        ``F`` in ``Q(t) = F sin(omega t)``.
+    coefficients : ndarray
+        Harmonic vector of ``q``, ``[a0, a1, b1, ..., aH, bH]`` (conventions.py).
+    n_harmonics : int
+    q_max : float
+        ``max_t |q(t)|`` of the harmonic series (machine precision).
+    theta : ndarray
+        Coefficients of the restoring force used, ``model.coefficients_at(q_max)``.
+    residual_norm : float
+        Scaled norm of the harmonic-balance residual at the solution.
+    stable : bool or None
+        Hill's-method stability (``None`` when not computed).  With an amplitude
+        closure the coefficients are frozen at ``theta`` for the stability analysis.
+    iterations : int
+        Newton iterations used.
+    model : SingleModeModel
+    floquet_exponents : ndarray or None
+        The two Floquet exponents kept by Hill's method (largest real part first).
+    """
+
+    omega: float
+    force_amplitude: float
+    coefficients: np.ndarray
+    n_harmonics: int
+    q_max: float
+    theta: np.ndarray
+    residual_norm: float
+    stable: bool | None
+    iterations: int
+    model: SingleModeModel | None = None
+    floquet_exponents: np.ndarray | None = None
+
+    # time functions ------------------------------------------------------------------
+
+    def _series(self, t, order):
+        tau = self.omega * np.asarray(t, float)
+        H = self.n_harmonics
+        c = self.coefficients
+        kt = np.multiply.outer(tau, np.arange(1, H + 1))
+        a, b = c[1::2], c[2::2]
+        k = np.arange(1, H + 1, dtype=float)
+        w = self.omega
+        if order == 0:
+            return c[0] + np.cos(kt) @ a + np.sin(kt) @ b
+        if order == 1:
+            return np.cos(kt) @ (w * k * b) - np.sin(kt) @ (w * k * a)
+        return -(np.cos(kt) @ ((w * k) ** 2 * a) + np.sin(kt) @ ((w * k) ** 2 * b))
+
+    def q(self, t):
+        """Displacement ``q(t)`` of the harmonic series (time ``t`` in seconds)."""
+        return self._series(t, 0)
+
+    def velocity(self, t):
+        """``dq/dt`` at times ``t``."""
+        return self._series(t, 1)
+
+    def acceleration(self, t):
+        """``d2q/dt2`` at times ``t``."""
+        return self._series(t, 2)
+
+    def force(self, t):
+        """Applied force ``Q(t) = F sin(omega t)``."""
+        return self.force_amplitude * np.sin(self.omega * np.asarray(t, float))
+
+    def restoring_force(self, t):
+        """``h(q, q')`` with the steady state's coefficients ``theta``."""
+        if self.model is None:
+            raise RecordError("this SteadyState carries no model; restoring_force needs one")
+        return self.model.terms.restoring_force(self.q(t), self.velocity(t), self.theta)
+
+    # scalars ---------------------------------------------------------------------------
+
+    @property
+    def amplitude(self) -> float:
+        """Amplitude of the fundamental harmonic, ``sqrt(a1^2 + b1^2)``."""
+        return float(np.hypot(self.coefficients[1], self.coefficients[2]))
+
+    @property
+    def phase(self) -> float:
+        """Phase ``phi`` of the fundamental, ``q1 = A sin(omega t + phi)`` (lag < 0)."""
+        return float(np.arctan2(self.coefficients[1], self.coefficients[2]))
+
+    @property
+    def period(self) -> float:
+        return 2.0 * np.pi / self.omega
+
+    def summary(self) -> dict:
+        """JSON-safe dictionary of the steady state."""
+        names = self.model.terms.coefficient_names if self.model is not None else range(len(self.theta))
+        return {
+            "omega": self.omega,
+            "force_amplitude": self.force_amplitude,
+            "n_harmonics": self.n_harmonics,
+            "q_max": self.q_max,
+            "amplitude": self.amplitude,
+            "phase": self.phase,
+            "theta": {str(k): float(v) for k, v in zip(names, self.theta)},
+            "coefficients": [float(c) for c in self.coefficients],
+            "residual_norm": self.residual_norm,
+            "stable": self.stable,
+            "iterations": self.iterations,
+        }
+
+    def report(self) -> str:
+        s = self.summary()
+        stab = {None: "not computed", True: "stable", False: "unstable"}[self.stable]
+        return (
+            f"SteadyState at omega = {self.omega:.6g} rad/s, F = {self.force_amplitude:.6g}\n"
+            f"  q_max = {self.q_max:.10g}, fundamental amplitude = {self.amplitude:.10g}, "
+            f"phase = {self.phase:.6g} rad\n"
+            f"  theta = {s['theta']}\n"
+            f"  {stab}; residual {self.residual_norm:.2g} after {self.iterations} Newton iterations "
+            f"(H = {self.n_harmonics})"
+        )
+
+    def _repr_html_(self):
+        return "<pre>" + self.report().replace("&", "&amp;").replace("<", "&lt;") + "</pre>"
+
+
+@dataclass(frozen=True, eq=False)
+class FrequencyResponse:
+    """Steady states of a frequency sweep or continuation.
+
+    Attributes
+    ----------
+    omega : ndarray
+        Frequencies [rad/s] in the order computed (not monotonic past a fold).
+    q_max : ndarray
+        ``max |q|`` of each steady state.
+    amplitude, phase : ndarray
+        Fundamental amplitude and phase (``q1 = A sin(omega t + phi)``).
+    stable : ndarray of bool or None
+        Hill's-method stability (closure frozen), ``None`` when not computed.
+    folds : tuple of int
+        Indices of fold (turning) points found by continuation (empty for sweeps).
+    coefficients : ndarray
+        ``(n_points, 2H + 1)`` harmonic vectors of ``q``.
+    theta : ndarray
+        ``(n_points, n_terms)`` coefficients used at each point.
+    force_amplitude : float
+    n_harmonics : int
+    method : {"sweep", "continuation"}
+    residual_norm, iterations : ndarray
+    floquet_exponents : ndarray or None
+        ``(n_points, 2)`` complex.
+    model : SingleModeModel
+    """
+
+    omega: np.ndarray
+    q_max: np.ndarray
+    amplitude: np.ndarray
+    phase: np.ndarray
+    stable: np.ndarray | None
+    folds: tuple
+    coefficients: np.ndarray
+    theta: np.ndarray
+    force_amplitude: float
+    n_harmonics: int
+    method: str
+    residual_norm: np.ndarray
+    iterations: np.ndarray
+    floquet_exponents: np.ndarray | None = None
+    model: SingleModeModel | None = None
+
+    def __len__(self):
+        return int(self.omega.size)
+
+    def state(self, i: int) -> SteadyState:
+        """The :class:`SteadyState` of point ``i``."""
+        i = range(len(self))[i]
+        return SteadyState(
+            omega=float(self.omega[i]),
+            force_amplitude=self.force_amplitude,
+            coefficients=self.coefficients[i],
+            n_harmonics=self.n_harmonics,
+            q_max=float(self.q_max[i]),
+            theta=self.theta[i],
+            residual_norm=float(self.residual_norm[i]),
+            stable=None if self.stable is None else bool(self.stable[i]),
+            iterations=int(self.iterations[i]),
+            model=self.model,
+            floquet_exponents=None if self.floquet_exponents is None else self.floquet_exponents[i],
+        )
+
+    @property
+    def states(self) -> list:
+        """All points as a list of :class:`SteadyState`."""
+        return [self.state(i) for i in range(len(self))]
+
+    @property
+    def fold_omegas(self) -> np.ndarray:
+        return self.omega[list(self.folds)]
+
+    def linear(self, q_max=0.0) -> np.ndarray:
+        """Complex linear-part FRF at this response's frequencies (see :func:`linear_frf`)."""
+        return linear_frf(self.model, self.omega, self.force_amplitude, q_max=q_max)
+
+    def summary(self) -> dict:
+        """JSON-safe dictionary (arrays as lists)."""
+        i_peak = int(np.argmax(self.q_max)) if len(self) else None
+        return {
+            "method": self.method,
+            "force_amplitude": self.force_amplitude,
+            "n_harmonics": self.n_harmonics,
+            "n_points": len(self),
+            "omega_range": [float(np.min(self.omega)), float(np.max(self.omega))] if len(self) else None,
+            "peak": None if i_peak is None else {"omega": float(self.omega[i_peak]), "q_max": float(self.q_max[i_peak])},
+            "folds": [{"index": int(i), "omega": float(self.omega[i]), "q_max": float(self.q_max[i])} for i in self.folds],
+            "n_unstable": None if self.stable is None else int(np.count_nonzero(~self.stable)),
+            "max_residual": float(np.max(self.residual_norm)) if len(self) else None,
+            "omega": self.omega.tolist(),
+            "q_max_values": self.q_max.tolist(),
+            "amplitude": self.amplitude.tolist(),
+            "phase": self.phase.tolist(),
+            "stable": None if self.stable is None else self.stable.tolist(),
+        }
+
+    def report(self) -> str:
+        s = self.summary()
+        lines = [
+            f"FrequencyResponse ({self.method}) of {len(self)} points, F = {self.force_amplitude:.6g}, "
+            f"H = {self.n_harmonics}",
+        ]
+        if len(self):
+            lines.append(
+                f"  omega {s['omega_range'][0]:.6g} .. {s['omega_range'][1]:.6g} rad/s; "
+                f"peak q_max {s['peak']['q_max']:.6g} at {s['peak']['omega']:.6g} rad/s"
+            )
+        for f in s["folds"]:
+            lines.append(f"  fold at omega = {f['omega']:.8g} rad/s, q_max = {f['q_max']:.6g}")
+        if s["n_unstable"] is not None:
+            lines.append(f"  {s['n_unstable']} unstable points (Hill, closure frozen)")
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + self.report().replace("&", "&amp;").replace("<", "&lt;") + "</pre>"
+
+    def plot(self, ax=None, **kwargs):
+        """Plot with :func:`jointid.report.frf_plots.plot_frequency_response`; returns ``(fig, ax)``."""
+        from ..report.frf_plots import plot_frequency_response
+
+        return plot_frequency_response(self, ax=ax, **kwargs)
+
+
+# ----------------------------------------------------------------------------------------
+# Public functions
+# ----------------------------------------------------------------------------------------
+
+
+def linear_frf(model, omega, force_amplitude=1.0, q_max=0.0):
+    """Complex response of the model's linear part, ``F / (k - omega^2 + i c omega)``.
+
+    ``k`` is the coefficient of the term ``q`` (``omega1^2``) and ``c`` that of ``q'``,
+    both evaluated at ``q_max`` (so an amplitude-dependent damping can be frozen at a
+    chosen amplitude); every other term is dropped.  With ``Q = F sin(omega t)`` the
+    response is ``q(t) = |X| sin(omega t + angle(X))``.
+
+    Parameters
+    ----------
+    model : SingleModeModel
+    omega : float or array_like
+        Frequencies [rad/s].
+    force_amplitude : float
+    q_max : float or array_like
+        Amplitude at which amplitude laws are evaluated (broadcast with ``omega``).
+
+    Returns
+    -------
+    complex ndarray (or complex scalar)
+
+    Examples
+    --------
+    >>> from jointid.simulate.model import seed_model
+    >>> X = linear_frf(seed_model(), 170.0)
+    >>> round(float(abs(X)), 6)       # 1 / (c0 * omega1)
+    0.073529
+    """
+    omega = np.asarray(omega, float)
+    qm = np.asarray(q_max, float)
+    names = model.terms.names
+    i_q = names.index("q") if "q" in names else None
+    i_v = names.index("q'") if "q'" in names else None
+    if qm.ndim == 0:
+        theta = model.coefficients_at(float(qm))
+        k = theta[i_q] if i_q is not None else 0.0
+        c = theta[i_v] if i_v is not None else 0.0
+    else:
+        thetas = np.array([model.coefficients_at(float(a)) for a in qm.ravel()]).reshape(qm.shape + (len(names),))
+        k = thetas[..., i_q] if i_q is not None else 0.0
+        c = thetas[..., i_v] if i_v is not None else 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = force_amplitude / (k - omega**2 + 1j * c * omega)
+    return out[()] if np.ndim(out) == 0 else out
+
+
+def _check_omega(omega):
+    w = float(omega)
+    if not (np.isfinite(w) and w > 0):
+        raise RecordError(f"omega must be a positive finite frequency in rad/s, got {omega!r}")
+    return w
+
+
+def _guess_vector(problem, guess):
+    """Reduced unknown vector from a user guess (SteadyState or coefficient vector)."""
+    if isinstance(guess, SteadyState):
+        coefs, qm = guess.coefficients, guess.q_max
+    else:
+        coefs = np.asarray(guess, float)
+        qm = None
+    z = problem.reduce(coefs)
+    if problem.closure:
+        if qm is None:
+            qm = problem.peak(z)[0]
+        z = np.append(z, qm)
+    return z
+
+
+@single_threaded  # thousands of tiny dense solves: threaded BLAS only adds overhead
+@np.errstate(all="ignore")  # diverging Newton trials are caught by their residual
+def steady_state(
+    model,
+    omega,
+    force_amplitude,
+    n_harmonics=9,
+    guess=None,
+    tol=1e-12,
+    *,
+    stability=True,
+    n_time=None,
+    max_iter=40,
+    odd=None,
+) -> SteadyState:
+    """Periodic steady state of ``q'' + h(q, q') = F sin(omega t)`` by harmonic balance.
+
+    Parameters
+    ----------
+    model : SingleModeModel
+        Restoring force and optional amplitude laws (closed on the solution's own
+        ``q_max``, see the module docstring).
+    omega : float
+        Excitation frequency [rad/s].
+    force_amplitude : float
+        ``F``.
+    n_harmonics : int, default 9
+        Harmonics kept.  For odd libraries only the odd harmonics are solved for (the
+        even ones are zero by symmetry); the Hill stability still perturbs all of them.
+    guess : SteadyState or array_like, optional
+        Starting point (a neighbouring solution, or a coefficient vector of any length).
+        Without it Newton starts from the linearised response and falls back to a
+        homotopy in the force level.
+    tol : float, default 1e-12
+        Tolerance on the scaled residual (``|R| / max(F, (omega^2 + omega1^2) |x|)``
+        and, with a closure, ``|q_max - max|q|| / |x|``).
+    stability : bool, default True
+        Compute Hill's-method stability.  The amplitude closure is frozen
+        (coefficients fixed at ``theta``) for the stability analysis.
+    n_time : int, optional
+        Time samples per period for the AFT (default :func:`default_n_time`).
+    max_iter : int, default 40
+    odd : bool, optional
+        Force (or forbid) the odd-harmonic reduction; default: the library's symmetry.
+
+    Returns
+    -------
+    SteadyState
+
+    Raises
+    ------
+    jointid.errors.ConvergenceError
+        When Newton (and the force homotopy) fail.
+    """
+    w = _check_omega(omega)
+    problem = _Problem(model, force_amplitude, n_harmonics, n_time, odd)
+    if guess is not None:
+        try:
+            z, ev, it = problem.newton(_guess_vector(problem, guess), w, tol, max_iter)
+        except ConvergenceError:
+            z, ev, it = problem.fresh(w, tol, max_iter)
+    else:
+        z, ev, it = problem.fresh(w, tol, max_iter)
+    return problem.state(z, w, ev, it, stability)
+
+
+@single_threaded  # thousands of tiny dense solves: threaded BLAS only adds overhead
+@np.errstate(all="ignore")  # diverging Newton trials are caught by their residual
+def frequency_response(
+    model,
+    force_amplitude,
+    omegas=None,
+    *,
+    omega_range=None,
+    n_harmonics=9,
+    stability=True,
+    tol=1e-12,
+    n_time=None,
+    odd=None,
+    ds=0.02,
+    ds_max=0.1,
+    max_steps=5000,
+) -> FrequencyResponse:
+    """Frequency response by harmonic balance: a sweep or a continuation.
+
+    Parameters
+    ----------
+    model : SingleModeModel
+    force_amplitude : float
+        ``F`` in ``Q = F sin(omega t)``.
+    omegas : array_like, optional
+        Sequential sweep at exactly these frequencies (in the given order), each point
+        started from a secant predictor through the previous two solutions.  This is the
+        fast path.  Past a fold it lands on whichever branch Newton reaches (the jump
+        of a physical sweep); use ``omega_range`` to follow the folds.
+    omega_range : (float, float), optional
+        Pseudo-arclength continuation in (harmonics, [q_max], omega) from
+        ``omega_range[0]`` to ``omega_range[1]``, with step control (on the number of
+        Newton iterations and the turning angle of the tangent).  Folds (turning points
+        in omega) are located to tolerance and reported in ``folds``.
+    n_harmonics : int, default 9
+    stability : bool, default True
+        Hill's-method stability of each point: the quadratic eigenvalue problem of the
+        linearisation about the periodic solution, keeping the two exponents of
+        smallest ``|imag|``.  The amplitude closure is frozen for stability (the
+        coefficients stay at the point's ``theta``), as ``q_max`` is a property of the
+        steady state, not a state variable.
+    tol : float, default 1e-12
+    n_time : int, optional
+    odd : bool, optional
+    ds, ds_max : float
+        Initial and largest continuation step in the scaled (coefficient / amplitude
+        scale, omega / range width) space.
+    max_steps : int
+        Continuation step limit (a :class:`~jointid.errors.ConvergenceWarning` is issued
+        and the partial curve returned when reached).
+
+    Returns
+    -------
+    FrequencyResponse
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from jointid.simulate.model import seed_model
+    >>> r = frequency_response(seed_model(), 1.0, np.linspace(160, 180, 401))
+    >>> len(r), bool(r.stable.all())
+    (401, True)
+    """
+    if (omegas is None) == (omega_range is None):
+        raise RecordError("give exactly one of `omegas` (sweep) or `omega_range=(w0, w1)` (continuation)")
+    problem = _Problem(model, force_amplitude, n_harmonics, n_time, odd)
+    if omegas is not None:
+        w = np.atleast_1d(np.asarray(omegas, float))
+        if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w <= 0):
+            raise RecordError(f"omegas must be a non-empty 1-D array of positive frequencies, got {omegas!r}")
+        pts = _sweep(problem, w, tol)
+        method, folds = "sweep", ()
+    else:
+        try:
+            w0, w1 = (float(v) for v in omega_range)
+        except (TypeError, ValueError):
+            raise RecordError(f"omega_range must be a pair (w0, w1), got {omega_range!r}") from None
+        _check_omega(w0), _check_omega(w1)
+        if w0 == w1:
+            raise RecordError(f"omega_range must span a non-empty interval, got {omega_range!r}")
+        pts, folds = _continuation(problem, w0, w1, tol, ds, ds_max, max_steps)
+        method = "continuation"
+    return _assemble(problem, pts, folds, method, stability)
+
+
+def _assemble(problem, pts, folds, method, stability):
+    """Build the FrequencyResponse from a list of (omega, z, ev, iterations)."""
+    n_pts = len(pts)
+    nx = problem.active.size
+    omega = np.array([p[0] for p in pts])
+    coefs = np.zeros((n_pts, problem.n))
+    theta = np.empty((n_pts, len(problem.lib)))
+    qmax = np.empty(n_pts)
+    res = np.empty(n_pts)
+    its = np.empty(n_pts, dtype=int)
+    for i, (w, z, ev, it) in enumerate(pts):
+        coefs[i, problem.active] = z[:nx]
+        if problem.closure:
+            qmax[i] = z[nx]
+            theta[i] = problem.model.coefficients_at(z[nx])
+        else:
+            qmax[i] = ev["peak"][0] if ev.get("peak") is not None else problem.peak(z[:nx])[0]
+            theta[i] = problem.theta0
+        res[i] = ev["err"]
+        its[i] = it
+    stable = floquet = None
+    if stability:
+        floquet = problem.hill_batch(coefs, omega, theta)
+        stable = floquet.real.max(axis=1) < 0.0
+    amp = np.hypot(coefs[:, 1], coefs[:, 2])
+    phase = np.arctan2(coefs[:, 1], coefs[:, 2])
+    return FrequencyResponse(
+        omega=_readonly(omega),
+        q_max=_readonly(qmax),
+        amplitude=_readonly(amp),
+        phase=_readonly(phase),
+        stable=None if stable is None else _readonly(stable),
+        folds=tuple(int(i) for i in folds),
+        coefficients=_readonly(coefs),
+        theta=_readonly(theta),
+        force_amplitude=problem.F,
+        n_harmonics=problem.H,
+        method=method,
+        residual_norm=_readonly(res),
+        iterations=_readonly(its),
+        floquet_exponents=None if floquet is None else _readonly(floquet),
+        model=problem.model,
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# Sequential sweep (fast path)
+# ----------------------------------------------------------------------------------------
+
+
+def _sweep(problem, omegas, tol):
+    """Sequential solutions at ``omegas``; predictor: polynomial extrapolation (secant,
+    then quadratic) through the previous solutions, falling back to the previous
+    solution and to a fresh start."""
+    pts = []
+    hist_w, hist_z = [], []
+    for w in omegas:
+        w = float(w)
+        if not hist_z:
+            z, ev, it = problem.fresh(w, tol)
+        else:
+            guess = _extrapolate(hist_w, hist_z, w)
+            try:
+                z, ev, it = problem.newton(guess, w, tol)
+            except ConvergenceError:
+                try:
+                    z, ev, it = problem.newton(hist_z[-1], w, tol)
+                except ConvergenceError:
+                    z, ev, it = problem.fresh(w, tol)
+                hist_w, hist_z = [], []  # a jump: restart the predictor
+        pts.append((w, z, ev, it))
+        hist_w = (hist_w + [w])[-3:]
+        hist_z = (hist_z + [z])[-3:]
+    return pts
+
+
+def _extrapolate(ws, zs, w):
+    """Lagrange extrapolation of the solutions ``zs`` at ``ws`` to ``w`` (degree <= 2)."""
+    n = len(ws)
+    if n == 1 or len(set(ws)) < n:
+        return zs[-1]
+    out = np.zeros_like(zs[-1])
+    for i in range(n):
+        li = 1.0
+        for j in range(n):
+            if j != i:
+                li *= (w - ws[j]) / (ws[i] - ws[j])
+        out += li * zs[i]
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# Pseudo-arclength continuation
+# ----------------------------------------------------------------------------------------
+
+
+class _Arclength:
+    """Scaled augmented system ``G(u, nu) = 0`` with ``z = zs u``, ``omega = w0 + W nu``."""
+
+    def __init__(self, problem, w0, w1, zs, tol):
+        self.p = problem
+        self.w0, self.W = w0, w1 - w0
+        self.zs = zs
+        self.tol = tol
+        self.rs = np.ones(problem.m)
+        self.rs[: problem.active.size] = 1.0 / max(abs(problem.F), _TINY)
+        if problem.closure:
+            self.rs[-1] = 1.0 / zs
+
+    def split(self, y):
+        return y[:-1] * self.zs, self.w0 + self.W * y[-1]
+
+    def join(self, z, w):
+        return np.append(z / self.zs, (w - self.w0) / self.W)
+
+    def eval(self, y):
+        z, w = self.split(y)
+        ev = self.p.evaluate(z, w, jacobian=True, domega=True)
+        G = self.rs * ev["R"]
+        Gy = np.empty((self.p.m, self.p.m + 1))
+        Gy[:, :-1] = (self.rs[:, None] * ev["J"]) * self.zs
+        Gy[:, -1] = self.rs * ev["Jw"] * self.W
+        return G, Gy, ev
+
+    @staticmethod
+    def tangent(Gy, t_prev):
+        A = np.vstack([Gy, t_prev])
+        rhs = np.zeros(A.shape[0])
+        rhs[-1] = 1.0
+        t = np.linalg.solve(A, rhs)
+        return t / np.linalg.norm(t)
+
+    def correct(self, yp, t, max_iter=10):
+        """Newton on ``[G(y); t.(y - yp)] = 0``; returns ``(y, Gy, ev, its)`` or None."""
+        y = yp.copy()
+        for it in range(max_iter + 1):
+            G, Gy, ev = self.eval(y)
+            if ev["err"] <= self.tol and it > 0:
+                return y, Gy, ev, it
+            if not np.isfinite(ev["err"]):
+                return None
+            A = np.vstack([Gy, t])
+            rhs = -np.append(G, t @ (y - yp))
+            try:
+                dy = np.linalg.solve(A, rhs)
+            except np.linalg.LinAlgError:
+                return None
+            y = y + dy
+            if ev["err"] <= self.tol:
+                G, Gy, ev = self.eval(y)
+                return y, Gy, ev, it + 1
+        return None
+
+
+def _amplitude_scale(problem, w0, w1, tol):
+    """Typical size of the unknown vector over the range (a coarse sweep)."""
+    zmax = 0.0
+    try:
+        for _, z, _, _ in _sweep(problem, np.linspace(w0, w1, 21), max(tol, 1e-10)):
+            zmax = max(zmax, float(np.max(np.abs(z))))
+    except ConvergenceError:
+        pass
+    if zmax == 0.0:
+        zmax = max(abs(problem.F) / max(w0, w1) ** 2, _TINY)
+    return zmax
+
+
+def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
+    zs = _amplitude_scale(problem, w0, w1, tol)
+    arc = _Arclength(problem, w0, w1, zs, tol)
+    z, ev, it = problem.fresh(w0, tol)
+    pts = [(w0, z, ev, it)]
+    folds = []
+    y = arc.join(z, w0)
+    _, Gy, _ = arc.eval(y)
+    e_nu = np.zeros(y.size)
+    e_nu[-1] = 1.0
+    t = arc.tangent(Gy, e_nu)
+    ds_min = 1e-9
+    cos_max = math.cos(math.radians(20.0))
+    steps = 0
+    while True:
+        steps += 1
+        if steps > max_steps:
+            warnings.warn(
+                f"continuation stopped after {max_steps} steps at omega={pts[-1][0]:.6g} rad/s "
+                f"before reaching the end of the range ({w0:.6g}, {w1:.6g}); returning the partial curve",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
+            break
+        out = arc.correct(y + ds * t, t)
+        if out is not None:
+            y_new, Gy_new, ev_new, its = out
+            t_new = arc.tangent(Gy_new, t)
+            if t_new @ t < cos_max and ds > 1e3 * ds_min:
+                out = None
+        if out is None:
+            ds *= 0.5
+            if ds < ds_min:
+                raise ConvergenceError(
+                    f"continuation stalled at omega={pts[-1][0]:.6g} rad/s (F={problem.F:.6g}): "
+                    f"step size fell below {ds_min:g}; try more harmonics or a smaller range"
+                )
+            continue
+        # fold: the omega component of the tangent changes sign
+        if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0.0:
+            fold = _locate_fold(arc, y, t, ds, t_new)
+            if fold is not None:
+                yf, evf, itf = fold
+                zf, wf = arc.split(yf)
+                folds.append(len(pts))
+                pts.append((wf, zf, evf, itf))
+        nu = y_new[-1]
+        if nu > 1.0 or nu < 0.0:
+            # land exactly on the end of the range by interpolation + fixed-frequency Newton
+            nu_end = 1.0 if nu > 1.0 else 0.0
+            frac = (nu_end - y[-1]) / (nu - y[-1])
+            y_end = y + frac * (y_new - y)
+            z_end, w_end = arc.split(y_end)
+            w_end = w1 if nu_end == 1.0 else w0
+            try:
+                z_e, ev_e, it_e = problem.newton(z_end, w_end, tol)
+                pts.append((w_end, z_e, ev_e, it_e))
+            except ConvergenceError:
+                pass
+            break
+        z_new, w_new = arc.split(y_new)
+        pts.append((w_new, z_new, ev_new, its))
+        y, t = y_new, t_new
+        if its <= 2:
+            ds = min(ds * 1.6, ds_max)
+        elif its >= 5:
+            ds *= 0.6
+    return pts, folds
+
+
+def _locate_fold(arc, y, t, ds, t_new):
+    """Regula falsi (Illinois) on the step length for ``t_omega = 0`` from point ``y``."""
+    a, fa = 0.0, t[-1]
+    b, fb = ds, t_new[-1]
+    best = None
+    side = 0
+    for _ in range(30):
+        c = b - fb * (b - a) / (fb - fa)
+        out = arc.correct(y + c * t, t)
+        if out is None:
+            return best
+        yc, Gyc, evc, its = out
+        fc = arc.tangent(Gyc, t)[-1]
+        best = (yc, evc, its)
+        if abs(fc) < 1e-9:
+            break
+        if np.sign(fc) == np.sign(fb):
+            b, fb = c, fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a, fa = c, fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    return best
