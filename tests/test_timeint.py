@@ -69,8 +69,12 @@ def test_hb_and_shooting_agree_for_hardening_seed_law():
     m = seed_model(k3=-1e8)
     r = frequency_response(m, 1.0, omega_range=(160.0, 190.0), stability=False)
     f1 = r.folds[0]
-    st = r.state(f1 - 3)  # upper branch, close to the peak
-    orbit = periodic_orbit(m, st.omega, 1.0, guess=st)
+    i = int(np.argmin(np.abs(r.omega[:f1] - 175.0)))  # upper branch, three solutions coexist
+    st = r.state(i)
+    assert r.omega[r.folds[1]] < st.omega < r.omega[f1]
+    # the state selects the branch; a perturbed q_max makes the closure loop iterate
+    orbit = periodic_orbit(m, st.omega, 1.0, guess=st, q_max_guess=1.02 * st.q_max)
+    assert orbit.closure_iterations > 2
     assert orbit.q_max == pytest.approx(st.q_max, rel=AGREE)
     assert orbit.stable
 

@@ -222,7 +222,8 @@ class PeriodicOrbit:
     ----------
     omega, force_amplitude : float
     q_max : float
-        ``max_t |q(t)|`` over the period (closed with the amplitude laws).
+        ``max_t |q(t)|`` measured on the integrated orbit; the coefficients ``theta``
+        were evaluated at the closure's last iterate, within ``closure_residual``.
     q0, v0 : float
         State at ``t = 0`` (phase of ``sin(omega t)`` zero) on the orbit.
     theta : ndarray
@@ -519,7 +520,7 @@ def periodic_orbit(
     return PeriodicOrbit(
         omega=omega,
         force_amplitude=F,
-        q_max=float(s),
+        q_max=float(A),  # measured on the time-integrated orbit (|A - s| <= closure_tol A)
         q0=float(z[0]),
         v0=float(z[1]),
         theta=_readonly(th),
