@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import IdentificationError
+from ..signal.harmonics import HarmonicSeries
 
 __all__ = [
     "DampingLaw",
@@ -133,30 +134,27 @@ def fit_damping_law(q_max, c, c_stderr=None, order=2) -> DampingLaw:
     return DampingLaw(coef, se, q_max, c, s if c_stderr is not None else np.full_like(c, np.nan))
 
 
+def _one_period(coefficients, n_points):
+    """Values of a harmonic series (unit frequency) on ``n`` uniform points of one period."""
+    c = np.asarray(coefficients, float)
+    n = max(int(n_points), 16 * ((len(c) - 1) // 2 + 1))
+    return HarmonicSeries(1.0, c)(np.arange(n) * (2 * np.pi / n))
+
+
 def dissipated_energy(velocity_coefficients, omega, damping, n_points=1024) -> float:
-    """Energy dissipated in one period by the damping force ``damping(v) `` [J per modal unit].
+    """Energy dissipated in one period by the damping force ``damping(v)`` [J per modal unit].
 
     ``velocity_coefficients`` is a harmonic vector of ``q'`` (conventions), ``damping`` a
-    function of the velocity giving the damping force (e.g. ``lambda v: c * v``).
+    function of the velocity giving the damping force (e.g. ``lambda v: c * v``).  The
+    periodic trapezoidal rule is exact for a trigonometric polynomial.
     """
-    c = np.asarray(velocity_coefficients, float)
-    H = (len(c) - 1) // 2
-    n = max(int(n_points), 8 * (H + 1))
-    tau = np.arange(n) * (2 * np.pi / n)
-    k = np.arange(1, H + 1)
-    v = c[0] + np.cos(np.outer(tau, k)) @ c[1::2] + np.sin(np.outer(tau, k)) @ c[2::2]
-    T = 2 * np.pi / omega
-    return float(np.mean(damping(v) * v) * T)
+    v = _one_period(velocity_coefficients, n_points)
+    return float(np.mean(damping(v) * v) * 2 * np.pi / omega)
 
 
 def elastic_force_amplitude(displacement_coefficients, omega1, k3=0.0, n_points=1024) -> float:
     """``max_t |omega1^2 q - k3 q^3|`` over one period of a harmonic-series displacement."""
-    c = np.asarray(displacement_coefficients, float)
-    H = (len(c) - 1) // 2
-    n = max(int(n_points), 16 * (H + 1))
-    tau = np.arange(n) * (2 * np.pi / n)
-    k = np.arange(1, H + 1)
-    q = c[0] + np.cos(np.outer(tau, k)) @ c[1::2] + np.sin(np.outer(tau, k)) @ c[2::2]
+    q = _one_period(displacement_coefficients, n_points)
     return float(np.max(np.abs(omega1**2 * q - (k3 or 0.0) * q**3)))
 
 

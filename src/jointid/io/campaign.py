@@ -32,10 +32,13 @@ from typing import Any
 import numpy as np
 
 from ..errors import ManifestError, RecordError, RecordFileNotFoundError, where
+from .channels import validate_channels
 
 __all__ = ["RecordSpec", "Campaign", "load_campaign", "read_record", "RecordData", "write_campaign", "write_csv_record"]
 
 COORDINATES = ("modal", "physical")
+#: Allowed deviation of a time step from the mean step, as a fraction of it.
+CSV_TIME_RTOL = 1e-2
 
 
 @dataclass(frozen=True)
@@ -198,17 +201,9 @@ def read_record(spec: RecordSpec, required=("time", "force", "accel")) -> Record
         raise RecordError(
             f"{where(spec.file, spec.index, missing[0])}missing column; expected {list(required)}, found {sorted(cols)}"
         )
-    n = len(cols["time"])
-    for name, values in cols.items():
-        if len(values) != n:
-            raise RecordError(f"{where(spec.file, spec.index, name)}has {len(values)} samples, 'time' has {n}")
-        bad = ~np.isfinite(values)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise RecordError(
-                f"{where(spec.file, spec.index, name)}non-finite value {values[i]!r} at sample {i} "
-                f"({int(bad.sum())} in all)"
-            )
+    # CSV time stamps are often printed with few digits: allow 1 % jitter of the step
+    validate_channels(cols["time"], {k: v for k, v in cols.items() if k != "time"},
+                      source=where(spec.file, spec.index)[:-2], time_rtol=CSV_TIME_RTOL)
     time = cols.pop("time")
     return RecordData(spec, time, cols)
 

@@ -313,7 +313,8 @@ class Channels:
         )
 
 
-def validate_channels(time: Any, data: Mapping[str, Any], *, source: str | None = None) -> None:
+def validate_channels(time: Any, data: Mapping[str, Any], *, source: str | None = None,
+                      time_rtol: float = TIME_RTOL) -> None:
     """Check that a time vector and channels form a usable record.
 
     Checks, in order: the time vector is 1-D with at least two finite samples; it is
@@ -370,10 +371,10 @@ def validate_channels(time: Any, data: Mapping[str, Any], *, source: str | None 
     dt = (t[-1] - t[0]) / (n - 1)
     dev = np.abs(steps - dt)
     worst = int(np.argmax(dev))
-    if dev[worst] > TIME_RTOL * dt:
+    if dev[worst] > time_rtol * dt:
         raise RecordError(
             f"{where(src, channel='time')}expected a uniform time step (within "
-            f"{TIME_RTOL:g} of dt = {dt:.9g} s), got step {steps[worst]:.9g} s between "
+            f"{time_rtol:g} of dt = {dt:.9g} s), got step {steps[worst]:.9g} s between "
             f"samples {worst} and {worst + 1}"
         )
     for name, values in data.items():
