@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -233,6 +233,9 @@ def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) 
             if not msg.startswith(str(spec.file)):
                 msg = _context(spec) + msg
             return RecordOutcome(spec, "failed", msg, warnings=tuple(str(w.message) for w in caught))
+        except Exception as exc:  # noqa: BLE001 - one record must never lose the campaign
+            msg = f"{_context(spec)}unexpected {type(exc).__name__}: {exc}"
+            return RecordOutcome(spec, "failed", msg, warnings=tuple(str(w.message) for w in caught))
     return RecordOutcome(
         spec, "ok", None, signals, fit, modal_residual=resid, warnings=tuple(str(w.message) for w in caught)
     )
@@ -256,8 +259,6 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     if settings is None:
         settings = IdentifySettings(**kw)
     elif kw:
-        from dataclasses import replace
-
         settings = replace(settings, **kw)
     if not isinstance(campaign, Campaign):
         campaign = load_campaign(campaign)
@@ -301,7 +302,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
             band = band_average([outcomes[i].fit for i in members])
             if "c" in pooled.own_names:
                 for j, i in enumerate(members):
-                    outcomes[i] = _replace(outcomes[i], c_pooled=float(pooled.get("c")[j]),
+                    outcomes[i] = replace(outcomes[i], c_pooled=float(pooled.get("c")[j]),
                                            c_pooled_stderr=float(pooled.get_stderr("c")[j]))
         groups.append(GroupResult(key[0], key[1], tuple(outcomes[i].spec.index for i in members), pooled, band))
 
@@ -336,7 +337,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                     continue
                 u = dissipated_energy(o.signals.velocity.coefficients, o.signals.omega, lambda v, c=c: c * v)
                 f = elastic_force_amplitude(o.signals.displacement.coefficients, w1, k3)
-                outcomes[i] = _replace(o, energy=u, joint_force=f)
+                outcomes[i] = replace(o, energy=u, joint_force=f)
                 F.append(f)
                 U.append(u)
         power, perr = None, None
@@ -344,14 +345,10 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
             power = fit_power_law(F, U)
         except IdentificationError as exc:
             perr = f"preload {g.preload}, force level {g.force_level}: {exc}"
-        final_groups.append(_replace(g, power_law=power, power_law_error=perr))
+        final_groups.append(replace(g, power_law=power, power_law_error=perr))
 
     return CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors
     )
 
 
-def _replace(obj, **kw):
-    from dataclasses import replace
-
-    return replace(obj, **kw)
