@@ -63,6 +63,8 @@ def test_power_law_exponent(demo):
             assert 2.0 <= n <= 3.0
             assert n < chi3
             assert n == pytest.approx(pr.exact_energy[str(g.force_level)]["n_rig_effective"], abs=0.05)
+        # the joint's own exponent, from the shape of the identified c(q_max)
+        assert pr.joint_exponent["exponent"] == pytest.approx(chi3, abs=0.2)
     assert demo.checks["passed"]["n_in_2_3"]
 
 
@@ -98,7 +100,7 @@ def test_results_json(demo):
     for p in data["preloads"]:
         assert [r["F [N]"] for r in p["table5"]] == [1.5, 3.0, 6.0]
         assert len(p["repredictions"]) == 3
-        assert p["rig"]["joint_laws"]["rotation"]["iwan"]["dissipation_exponent"] == pytest.approx(2.6)
+        assert p["rig"]["joint_laws"]["rotation"]["iwan"]["dissipation_exponent"] == pytest.approx(2.7)
 
 
 def test_report_is_self_contained_and_complete(demo):

@@ -118,8 +118,9 @@ def test_force_distortion_is_measured(rig540):
 
 
 def test_random_test_gives_the_linear_frequencies(rig540):
-    rec = rig540.random_test(RandomTest(duration=64.0, nperseg=32768), rng=0)
-    frf = h1_estimate(rec["force"], np.vstack([rec["accel_30"], rec["accel_42"]]), rec.fs, nperseg=32768)
+    test = RandomTest()  # the demo's: 128 s, segments of 65536 samples (0.03 Hz)
+    rec = rig540.random_test(test, rng=0)
+    frf = h1_estimate(rec["force"], np.vstack([rec["accel_30"], rec["accel_42"]]), rec.fs, nperseg=test.nperseg)
     fit = fit_modes(frf, n_modes=3, channel=1, f_range=(15.0, 700.0), min_coherence=0.5)
     np.testing.assert_allclose(fit.frequencies_hz, rig540.linear_frequencies_hz[:3], rtol=5e-4)
     assert max(rig540.random_linearity(rec.meta["joint_rms"])) < 0.02  # the joint is linear at this level
@@ -207,10 +208,12 @@ def test_invalid_rig_inputs(rig120):
 @pytest.mark.slow
 def test_harmonic_balance_matches_time_integration_from_rest(rig120):
     """The steady state the rig records is the one a long time integration from rest reaches."""
-    acq = Acquisition(force_noise=0.0, accel_noise=0.0, duration=0.5, settle_tol=2e-4)
+    acq = Acquisition(force_noise=0.0, accel_noise=0.0, duration=0.5)
     freqs = [26.25, 26.32]
     hb = rig120.stepped_sine(freqs, 6.0, acq, rng=0)
-    ti = rig120.stepped_sine(freqs, 6.0, acq, rng=0, method="time", chunk=2.0, max_time=60.0)
+    ti = rig120.stepped_sine(freqs, 6.0, Acquisition(force_noise=0.0, accel_noise=0.0, duration=0.5, settle_tol=2e-4),
+                             rng=0, method="time", chunk=2.0, max_time=60.0)
+    assert all(d.settled for d in hb + ti)
     for a, b in zip(hb, ti):
         w = 2 * np.pi * a.frequency_hz
         t = np.arange(a.record.n_samples) / acq.fs

@@ -84,6 +84,7 @@ class DemoSettings:
     identify: IdentifySettings = field(default_factory=lambda: IdentifySettings(n_harmonics=5, damping_order=2))
     reprediction_points: int = 61
     update_starts: int = 2
+    basis_modes: int = 1
     rig_options: dict = field(default_factory=dict)
 
     def summary(self) -> dict:
@@ -93,6 +94,7 @@ class DemoSettings:
             "identify": self.identify.summary(),
             "reprediction_points": self.reprediction_points,
             "update_starts": self.update_starts,
+            "basis_modes": self.basis_modes,
             "rig_options": dict(self.rig_options),
         }
 
@@ -163,6 +165,7 @@ class PreloadResult:
     result: CampaignResult
     repredictions: tuple
     exact_energy: dict
+    joint_exponent: dict | None
     uff_csv_identical: bool | None
 
     def group(self, force_level):
@@ -215,6 +218,7 @@ class PreloadResult:
             "damping_law": None if law is None else law.summary(),
             "repredictions": [r.summary() for r in self.repredictions],
             "exact_energy": self.exact_energy,
+            "joint_exponent": self.joint_exponent,
             "uff_csv_identical": self.uff_csv_identical,
             "campaign_folder": str(self.campaign.folder),
             "identification": self.result.summary(),
@@ -290,7 +294,7 @@ def _updating(camp: RigCampaign, settings: DemoSettings):
                     f_range=(15.0, min(0.45 * rec.fs, 700.0)), min_coherence=0.5)
     update = update_to_frequencies(seed_bolted_beam(), fit.frequencies_hz, ("k_w", "k_t", "k_c"),
                                    n_starts=settings.update_starts)
-    section = structure_section(camp.rig, update.beam)
+    section = structure_section(camp.rig, update.beam, settings.basis_modes)
     write_manifest(camp, section, extra={"random_test_hz": [float(f) for f in fit.frequencies_hz],
                                         "updated_parameters": ["k_w", "k_t", "k_c"]})
     structure = Structure.from_mapping(section, source=str(camp.folder / "campaign.toml"))
@@ -330,6 +334,7 @@ def _exact_frf(camp: RigCampaign, force_level, sensor="accel_42", refine=9) -> R
     k = int(np.argmax(np.abs(H)))
     lo, hi = f[max(k - 1, 0)], f[min(k + 1, f.size - 1)]
     ff = np.linspace(lo, hi, refine)[1:-1]
+    ff = ff[np.min(np.abs(ff[:, None] - f[None, :]), axis=1) > 1e-9 * f[k]]  # not the dwell frequencies again
     fine = rig.sweep(ff, force_level, distortion=camp.plan.acquisition.distortion)
     f_all = np.concatenate([f, ff])
     H_all = np.concatenate([H, [H_of(s) for s in fine]])
@@ -394,6 +399,41 @@ def _exact_energy(rig: VirtualRig, result: CampaignResult) -> dict:
         n_eff = float(np.polyfit(np.log(F), np.log(U), 1)[0])
         out[str(g.force_level)] = {"n_rig_effective": n_eff, "n_iwan": law.iwan.dissipation_exponent if law.iwan else None}
     return out
+
+
+def _joint_exponent(preload, result: CampaignResult) -> dict | None:
+    """Dissipation exponent of the joint estimated from the identified damping.
+
+    An Iwan joint's equivalent viscous damping grows as ``q_max^(1 + chi)`` in micro-slip
+    (its energy per cycle as ``F^(3 + chi)``), on top of the beam's constant viscous
+    damping.  Fitting ``c = c0 + a (q_max / q_ref)^m`` to the per-record damping
+    coefficients of a preload (weighted by their standard errors) gives ``2 + m``, an
+    estimate of the joint's ``3 + chi`` that the polynomial law of seed Eq 26 cannot give.
+    """
+    import scipy.optimize
+
+    q, c, s = [], [], []
+    for g in result.groups:
+        if g.preload == preload and g.pooled is not None and "c" in g.pooled.own_names:
+            q += list(g.pooled.q_max)
+            c += list(g.pooled.get("c"))
+            s += list(g.pooled.get_stderr("c"))
+    q, c, s = (np.asarray(x, float) for x in (q, c, s))
+    if q.size < 4:
+        return None
+    q_ref = float(np.max(q))
+
+    def model(x, c0, a, m):
+        return c0 + a * (x / q_ref) ** m
+
+    try:
+        popt, pcov = scipy.optimize.curve_fit(model, q, c, p0=(float(c.min()), float(np.ptp(c)), 1.0),
+                                              sigma=np.maximum(s, 1e-12 * np.abs(c).max()), maxfev=20000)
+    except (RuntimeError, ValueError):
+        return None
+    err = np.sqrt(np.clip(np.diag(pcov), 0, None))
+    return {"c0": float(popt[0]), "a": float(popt[1]), "m": float(popt[2]), "m_stderr": float(err[2]),
+            "q_ref": q_ref, "exponent": 2.0 + float(popt[2])}
 
 
 def _uff_csv_identical(camp: RigCampaign) -> bool | None:
@@ -465,7 +505,9 @@ def _checks(results, total_time) -> dict:
         ok["lower_preload_more_nonlinear"] = False
     v["n_range"] = [min(n_vals), max(n_vals)] if n_vals else None
     ok["n_in_2_3"] = bool(n_vals) and all(2.0 <= n <= 3.0 for n in n_vals)
-    v["n_iwan_exact"] = {pr.preload: pr.rig.model.laws[0].iwan.dissipation_exponent for pr in results}
+    v["n_iwan_exact"] = {pr.preload: (pr.rig.model.laws[0].iwan.dissipation_exponent
+                                      if pr.rig.model.laws[0].iwan is not None else None) for pr in results}
+    v["joint_exponent_from_damping"] = {pr.preload: (pr.joint_exponent or {}).get("exponent") for pr in results}
     v["peak_amplitude_error_percent_max"] = max(amp_err) if amp_err else None
     ok["peak_amplitude_error_percent_max"] = bool(amp_err) and max(amp_err) < CHECK_LIMITS["peak_amplitude_error_percent"]
     v["peak_frequency_error_percent_max"] = max(freq_err) if freq_err else None
@@ -543,7 +585,7 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
         same = _uff_csv_identical(camp)
         timings[f"uff_csv_check_{p:g}"] = time.perf_counter() - t0
         results.append(PreloadResult(float(p), rig, camp, frf, fit, update, structure, result, reps,
-                                     _exact_energy(rig, result), same))
+                                     _exact_energy(rig, result), _joint_exponent(float(p), result), same))
     timings["simulation_and_identification"] = time.perf_counter() - t_start
     paths = {}
     cached = []

@@ -150,7 +150,7 @@ def as_built_structure(rig: VirtualRig) -> dict:
     }
 
 
-def structure_section(rig: VirtualRig, beam) -> dict:
+def structure_section(rig: VirtualRig, beam, basis_modes: int = 1) -> dict:
     """``[structure]`` with the joint and clamp stiffnesses of an (updated) beam.
 
     Parameters
@@ -159,13 +159,16 @@ def structure_section(rig: VirtualRig, beam) -> dict:
         For the shaker and sensor positions.
     beam : JointedBeam
         The updated model (``k_w``, ``k_t`` of its spring joint, clamp stiffness).
+    basis_modes : int
+        Modes in the least-squares basis of the modal coordinates (at most the number
+        of accelerometers); 1 is the seed's ``d = phi_1 q``.
     """
     clamp = beam.clamp_stiffness
     return {
         "model": "seed-bolted-beam",
         "force_position": rig.force_position,
         "force_column": "force",
-        "basis_modes": 1,
+        "basis_modes": int(basis_modes),
         "beam": {"clamp_stiffness": "inf" if math.isinf(clamp) else float(clamp), "n_elements": int(beam.n_elements)},
         "joint": {"k_w": float(beam.joint.k_w), "k_t": float(beam.joint.k_t)},
         "sensors": dict(rig.sensors),

@@ -47,6 +47,7 @@ __all__ = [
     "VirtualRig",
     "SEED_RIG_JOINTS",
     "SEED_SENSORS",
+    "SEED_RIG_DAMPING",
     "seed_rig",
 ]
 
@@ -60,10 +61,13 @@ SEED_SENSORS: Mapping[str, float] = MappingProxyType({"accel_30": 0.30, "accel_4
 #: joint is the more nonlinear one.
 SEED_RIG_JOINTS: Mapping[int, Mapping[str, float]] = MappingProxyType(
     {
-        120: MappingProxyType({"F_S": 6.0, "stuck_fraction": 0.8, "chi": -0.4, "beta": 0.4, "k3": 2.0e7}),
-        540: MappingProxyType({"F_S": 16.0, "stuck_fraction": 0.8, "chi": -0.4, "beta": 0.4, "k3": 0.5e7}),
+        120: MappingProxyType({"F_S": 16.0, "stuck_fraction": 0.8, "chi": -0.3, "beta": 0.4, "k3": 1.5e7}),
+        540: MappingProxyType({"F_S": 40.0, "stuck_fraction": 0.8, "chi": -0.3, "beta": 0.4, "k3": 0.4e7}),
     }
 )
+
+#: Modal damping ratio of the beam (material and clamp) in the seed rig.
+SEED_RIG_DAMPING = 0.0015
 
 
 @dataclass(frozen=True)
@@ -96,7 +100,7 @@ class Acquisition:
     fs: float = 2048.0
     duration: float = 2.0
     force_noise: float = 0.005
-    accel_noise: float = 0.02
+    accel_noise: float = 0.1
     antialias: float = 0.45
     distortion: tuple = ()
     settle_periods: int = 6
@@ -268,7 +272,7 @@ class VirtualRig:
     preload: float
     beam: JointedBeam
     joint_laws: Mapping[str, JointLaw]
-    damping_ratio: float | tuple = 0.002
+    damping_ratio: float | tuple = SEED_RIG_DAMPING
     n_modes: int = 4
     force_position: float = SEED_GEOMETRY["force_position"]
     sensors: Mapping[str, float] = field(default_factory=lambda: dict(SEED_SENSORS))
@@ -567,8 +571,8 @@ def harmonic_mask(n_harmonics: int, frequency_hz: float, cutoff_hz: float) -> np
     return (k * frequency_hz < cutoff_hz).astype(float)
 
 
-def seed_rig(preload: int = 120, *, joint: Mapping[str, float] | None = None, damping_ratio=0.002, n_modes: int = 4,
-             n_elements: int = 100) -> VirtualRig:
+def seed_rig(preload: int = 120, *, joint: Mapping[str, float] | None = None, damping_ratio=SEED_RIG_DAMPING,
+             n_modes: int = 4, n_elements: int = 100) -> VirtualRig:
     """The virtual rig of the seed paper at bolt preload 120 or 540 N.
 
     The beam is :func:`~jointid.modal.beam.seed_bolted_beam` updated to the Table 4
