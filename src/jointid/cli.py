@@ -16,6 +16,7 @@ from .errors import JointidError, JointidWarning
 EXIT_OK, EXIT_PARTIAL, EXIT_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 
 EPILOG = """examples:
+  jointid demo --out demo-out                # the virtual bolted-beam experiment, report.html
   jointid example --out example-out          # the seed paper's numerical example (Tables 1-3, Figs 4-6)
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
@@ -57,6 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", type=Path, help="simulation configuration (see jointid.synthesis)")
     p.add_argument("--out", type=Path, required=True, help="campaign folder to write")
     p.add_argument("--quiet", action="store_true")
+
+    p = sub.add_parser("demo", help="the virtual bolted-beam experiment end to end, with an HTML report",
+                       epilog="example: jointid demo --out demo-out")
+    p.add_argument("--out", type=Path, default=Path("demo-out"), help="output folder (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the rig's excitation and noise (default: 0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
 
     p = sub.add_parser("example", help="the seed paper's numerical example: Tables 1-3 and Figs 4-6",
                        epilog="example: jointid example --out example-out")
@@ -152,6 +159,14 @@ def _simulate(args) -> int:
     return EXIT_OK
 
 
+def _demo(args) -> int:
+    from .demo import run_demo
+
+    res = run_demo(args.out, progress=not args.quiet, seed=args.seed)
+    print(res.report())
+    return EXIT_OK
+
+
 def _example(args) -> int:
     from .examples import run_paper_example
 
@@ -162,7 +177,7 @@ def _example(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
-COMMANDS = {"identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
+COMMANDS = {"demo": _demo, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
 
 
 def main(argv=None) -> int:
@@ -170,7 +185,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
         # jointid warnings are recorded per record in results.json; do not flood the terminal
-        if getattr(args, "quiet", False) or args.command in ("identify", "example"):
+        if getattr(args, "quiet", False) or args.command in ("identify", "example", "demo"):
             warnings.simplefilter("ignore", JointidWarning)
         try:
             return COMMANDS[args.command](args)
