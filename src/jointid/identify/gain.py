@@ -1,0 +1,468 @@
+"""Stepped-sine force-state mapping when the recorded "force" has an unknown gain.
+
+Many tests drive an electrodynamic shaker from a voltage and record that voltage, not the
+force (no force transducer).  Near a mode the shaker force is, to first order,
+proportional to the voltage, ``Q = g V``, so the single-mode equation of motion
+``q'' + h(q, q') = Q`` (seed Eq 14) becomes::
+
+    m q'' + sum_j theta_j phi_j(q, q') = V,      m = 1/g,  theta_j = (seed coefficient)_j / g.
+
+The inertia coefficient ``m`` joins the regression as one more column (the harmonic-
+filtered acceleration).  Gain-free results are ratios: ``omega1 = sqrt(theta_q / m)``,
+``k3/m`` (the seed's ``k3`` for a unit modal mass), ``k3/k = theta_k3 / theta_q``, ``c/m``.
+
+Why pooled
+    In a single record the fundamental of ``q''`` is ``-omega^2`` times the fundamental of
+    ``q``: the inertia and linear-stiffness columns are collinear except for the higher
+    harmonics, which carry only the (small) nonlinear distortion.  ``m`` and
+    ``theta_q`` are therefore only separable through the harmonics in one record, and
+    that is badly conditioned.  Records at *different* excitation frequencies share ``m``
+    and the stiffness terms but have different ``omega^2``, so the pooled regression
+    (this module's :class:`PooledGainForceStateMapping`) separates them; damping terms
+    keep one coefficient per record (amplitude-dependent damping, seed Eq 20).  The
+    pooled form is the intended use; a single record is accepted but warns.
+
+Reduction
+    Each record is reduced to the triangular factor ``R`` of ``[X, y]`` by
+    :func:`jointid.identify.regression.reduce_blocks` (streamed block by block, never
+    building the full regression matrix); the factors are placed in their shared and
+    per-record columns, weighted and stacked, and solved with
+    :func:`~jointid.identify.regression.lstsq_from_reduced` -- the exact pooled least squares.
+
+Phase of the channels
+    A time shift ``tau`` of the response channel behind the excitation channel (``tau < 0``
+    when the response leads, e.g. because the shaker force lags the voltage through the
+    coil inductance; also vibrometer decoder latency, anti-alias filters) changes the
+    apparent per-record damping to about ``c_r/m = c/m + tau (omega1^2 - omega_r^2)``:
+    largest away from resonance, of opposite signs below and above it, and possibly
+    negative.  The stiffness and inertia (in-phase part) are hardly affected.  Pass a
+    known shift as ``delay`` to :func:`sine_dwell_signals`.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._blas import single_threaded
+from ..errors import IdentificationError, IllConditionedWarning, RecordError
+from ..signal.harmonics import (
+    HarmonicSeries,
+    StateSignals,
+    check_time_base,
+    estimate_frequency,
+    fit_harmonics,
+)
+from .broadband import delta_method
+from .regression import lstsq_from_reduced, reduce_blocks
+from .terms import library
+
+__all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
+
+COND_LIMIT = 1e8
+_KINDS = {"displacement": 0, "velocity": 1, "acceleration": 2}
+
+
+def sine_dwell_signals(t, force, response, *, measured="acceleration", frequency_hz=None, n_harmonics=3,
+                       delay=0.0, channels=("time", "force", "response")) -> StateSignals:
+    """Reduce a sine dwell to :class:`~jointid.signal.harmonics.StateSignals` from any measured response.
+
+    The response (acceleration, velocity or displacement) is fitted with ``n_harmonics``
+    harmonics of the excitation frequency; the acceleration series is its exact
+    derivative (or the fit itself), so velocity and displacement follow by the usual
+    analytic integration (seed Eq 17-18).  The constant of the fit is dropped (a velocity
+    or displacement offset carries no dynamics).
+
+    Parameters
+    ----------
+    t, force, response : array
+        Time [s], excitation (force or voltage) and measured response.
+    measured : {"acceleration", "velocity", "displacement"}
+    frequency_hz : float, optional
+        Excitation frequency; estimated from ``force`` when ``None``.
+    n_harmonics : int
+        Harmonics fitted.  Keep ``n_harmonics * f`` below the next structural mode: a
+        harmonic near another mode is that mode's response, not the joint's.
+    delay : float
+        Known delay [s] of the response channel behind the excitation channel; the
+        response series is advanced by it.
+    channels : (str, str, str)
+        Names used in error messages.
+
+    Returns
+    -------
+    StateSignals
+        ``accel_measured`` holds the fitted acceleration when the acceleration was not
+        measured (there is no measured acceleration to compare with).
+
+    Raises
+    ------
+    RecordError
+        Bad time base, non-finite values, zero force, harmonics above Nyquist, fewer than
+        two periods.
+    """
+    tname, fname, rname = channels
+    if measured not in _KINDS:
+        raise RecordError(f"measured must be one of {sorted(_KINDS)}, got {measured!r}")
+    t = np.asarray(t, float)
+    check_time_base(t, channel=tname)
+    force = np.asarray(force, float)
+    response = np.asarray(response, float)
+    for x, name in ((force, fname), (response, rname)):
+        if x.shape != t.shape:
+            raise RecordError(f"channel {name!r}: has shape {x.shape}, the time column has {t.shape}")
+        bad = ~np.isfinite(x)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise RecordError(f"channel {name!r}: non-finite value {x[i]!r} at sample {i}")
+    if not np.any(force - force.mean()):
+        raise RecordError(f"channel {fname!r}: the excitation is constant; the record carries no excitation")
+    given = frequency_hz is not None
+    f_hz = float(frequency_hz) if given else estimate_frequency(t, force, channel=fname)
+    if not np.isfinite(f_hz) or f_hz <= 0:
+        raise RecordError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    if (t[-1] - t[0] + dt) * f_hz < 2:
+        raise RecordError(f"channel {tname!r}: the record spans fewer than 2 periods of {f_hz:.6g} Hz")
+    omega = 2 * np.pi * f_hz
+    series, resid = fit_harmonics(t, response, omega, n_harmonics, channel=rname)
+    c = series.coefficients.copy()
+    c[0] = 0.0
+    s = HarmonicSeries(omega, c, series.t0 - float(delay))
+    for _ in range(2 - _KINDS[measured]):
+        s = s.derivative()
+    accel_measured = response if measured == "acceleration" else s(t)
+    return StateSignals(t, force, accel_measured, s, f_hz, given, float(resid))
+
+
+def _reduced(lib, sig: StateSignals):
+    """``R`` of ``[q''_fit, phi(q, q'), V]`` for one record, streamed block by block."""
+
+    def blocks():
+        for sl, q, v, a_fit in sig.blocks():
+            yield np.column_stack([a_fit, lib.evaluate(q, v), sig.force[sl]])
+
+    return reduce_blocks(blocks, len(lib) + 1), sig.t.size
+
+
+@dataclass(frozen=True)
+class GainFit:
+    """Pooled stepped-sine fit with an unknown force gain.
+
+    Attributes
+    ----------
+    terms : tuple of str
+    shared_names : tuple of str
+        ``("m", <shared term coefficients>...)``.
+    shared, shared_stderr : array
+    own_names : tuple of str
+        Per-record coefficients (``("c",)`` by default).
+    own, own_stderr : array ``(n_records, n_own)``
+    covariance : array
+        Covariance of all coefficients (shared first, then per record).
+    q_max, frequency_hz : array
+        Amplitude (in response units) and excitation frequency of each record.
+    omega1_per_record : array
+        Consistency check: ``sqrt(theta_q,r / m)`` of each record refitted alone with ``m``
+        and the nonlinear stiffness terms fixed at the pooled values.
+    condition_number : float
+    weights : array
+    n_samples : int
+    warnings : tuple of str
+    """
+
+    terms: tuple
+    shared_names: tuple
+    shared: np.ndarray
+    shared_stderr: np.ndarray
+    own_names: tuple
+    own: np.ndarray
+    own_stderr: np.ndarray
+    covariance: np.ndarray = field(repr=False)
+    q_max: np.ndarray = field(default=None)
+    frequency_hz: np.ndarray = field(default=None)
+    omega1_per_record: np.ndarray = field(default=None)
+    condition_number: float = float("nan")
+    weights: np.ndarray = field(default=None, repr=False)
+    n_samples: int = 0
+    warnings: tuple = ()
+
+    @property
+    def n_records(self) -> int:
+        return int(self.own.shape[0])
+
+    def _all(self):
+        return np.concatenate([self.shared, self.own.ravel()])
+
+    def get(self, name):
+        """A shared coefficient (float) or per-record coefficient (array) by name."""
+        if name in self.shared_names:
+            return float(self.shared[self.shared_names.index(name)])
+        if name in self.own_names:
+            return self.own[:, self.own_names.index(name)]
+        raise KeyError(f"no coefficient {name!r}; shared {self.shared_names}, per record {self.own_names}")
+
+    @property
+    def m(self) -> float:
+        return self.get("m")
+
+    @property
+    def gain(self) -> float:
+        """``1 / m``: force per unit of the recorded excitation for a unit modal mass."""
+        return 1.0 / self.m
+
+    def _idx(self, name):
+        return self.shared_names.index(name)
+
+    def _quantity(self, name):
+        """Function of the full coefficient vector for a derived quantity."""
+        im = self._idx("m")
+        if name in ("omega1", "f1_hz"):
+            iq = self._idx("omega1^2")
+            scale = 1.0 if name == "omega1" else 1 / (2 * np.pi)
+            return lambda p: scale * np.sqrt(p[iq] / p[im]) if p[iq] / p[im] > 0 else np.nan
+        if name == "gain":
+            return lambda p: 1.0 / p[im]
+        if name.endswith("/m") and name[:-2] in self.shared_names:
+            j = self._idx(name[:-2])
+            return lambda p: p[j] / p[im]
+        if name.endswith("/k") and name[:-2] in self.shared_names:
+            j, iq = self._idx(name[:-2]), self._idx("omega1^2")
+            return lambda p: p[j] / p[iq]
+        raise KeyError(name)
+
+    def derived(self) -> dict:
+        """Gain-free shared quantities with delta-method standard errors ``{name: (value, stderr)}``.
+
+        ``omega1``, ``f1_hz``, ``gain``, and ``<coef>/m``, ``<coef>/k`` for every shared
+        stiffness coefficient (``k3/m`` is the seed's ``k3``; positive is softening).
+        """
+        names = ["omega1", "f1_hz", "gain"]
+        for n in self.shared_names:
+            if n not in ("m", "omega1^2"):
+                names += [f"{n}/m", f"{n}/k"]
+        p, C = self._all(), self.covariance
+        return {n: delta_method(self._quantity(n), p, C) for n in names}
+
+    def value(self, name) -> float:
+        return float(self._quantity(name)(self._all()))
+
+    @property
+    def omega1(self) -> float:
+        return self.value("omega1")
+
+    @property
+    def f1_hz(self) -> float:
+        return self.value("f1_hz")
+
+    @property
+    def k3_over_m(self):
+        return self.value("k3/m") if "k3" in self.shared_names else None
+
+    @property
+    def k3_over_k(self):
+        return self.value("k3/k") if "k3" in self.shared_names else None
+
+    def per_record(self, name="c") -> tuple[np.ndarray, np.ndarray]:
+        """``name / m`` of every record with delta-method standard errors (e.g. ``c/m``)."""
+        j = self.own_names.index(name)
+        ns, no = len(self.shared), len(self.own_names)
+        im = self._idx("m")
+        vals, errs = [], []
+        for r in range(self.n_records):
+            k = ns + r * no + j
+            v, s = delta_method(lambda p: p[k] / p[im], self._all(), self.covariance)
+            vals.append(v)
+            errs.append(s)
+        return np.array(vals), np.array(errs)
+
+    def damping_ratio(self) -> np.ndarray:
+        """``zeta_r = (c_r/m) / (2 omega1)`` of every record."""
+        cm, _ = self.per_record("c")
+        return cm / (2 * self.omega1)
+
+    def omega1_spread(self) -> float:
+        """``(max - min) / mean`` of :attr:`omega1_per_record`."""
+        w = np.asarray(self.omega1_per_record, float)
+        return float((w.max() - w.min()) / w.mean()) if w.size else float("nan")
+
+    def summary(self) -> dict:
+        d = self.derived()
+        out = {
+            "terms": list(self.terms),
+            "shared": {n: float(v) for n, v in zip(self.shared_names, self.shared)},
+            "shared_stderr": {n: float(v) for n, v in zip(self.shared_names, self.shared_stderr)},
+            "per_record": {n: self.own[:, i].tolist() for i, n in enumerate(self.own_names)},
+            "per_record_stderr": {n: self.own_stderr[:, i].tolist() for i, n in enumerate(self.own_names)},
+            "derived": {k: float(v[0]) for k, v in d.items()},
+            "derived_stderr": {k: float(v[1]) for k, v in d.items()},
+            "q_max": np.asarray(self.q_max).tolist(),
+            "frequency_hz": np.asarray(self.frequency_hz).tolist(),
+            "omega1_per_record": np.asarray(self.omega1_per_record).tolist(),
+            "omega1_spread": self.omega1_spread(),
+            "condition_number": float(self.condition_number),
+            "n_records": self.n_records,
+            "n_samples": int(self.n_samples),
+            "warnings": list(self.warnings),
+        }
+        if "c" in self.own_names:
+            cm, cs = self.per_record("c")
+            out["c_over_m"] = cm.tolist()
+            out["c_over_m_stderr"] = cs.tolist()
+            out["damping_ratio"] = self.damping_ratio().tolist()
+        return out
+
+    def report(self) -> str:
+        lines = [f"pooled stepped-sine fit with unknown force gain: {self.n_records} records, "
+                 f"condition number {self.condition_number:.3g}"]
+        for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr):
+            lines.append(f"  {n:>10} = {v:.8g} ± {s:.2g}   (shared)")
+        for k, (v, s) in self.derived().items():
+            lines.append(f"  {k:>10} = {v:.6g} ± {s:.2g}")
+        has_c = "c" in self.own_names
+        cm = self.per_record("c") if has_c else None
+        for r in range(self.n_records):
+            txt = (f"  record {r}: {self.frequency_hz[r]:.5g} Hz, q_max {self.q_max[r]:.4g}, "
+                   f"omega1 alone {self.omega1_per_record[r]:.6g} rad/s")
+            if has_c:
+                txt += f", c/m {cm[0][r]:.4g} ± {cm[1][r]:.2g}"
+            lines.append(txt)
+        lines.append(f"  spread of the per-record omega1: {100 * self.omega1_spread():.3g} %")
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+    def plot(self, ax=None):
+        """Per-record ``c/m`` and ``omega1`` against amplitude."""
+        from ..report.data_plots import plot_gain_fit
+
+        return plot_gain_fit(self, ax=ax)
+
+
+class PooledGainForceStateMapping:
+    """Pooled force-state mapping of sine dwells whose excitation has an unknown gain.
+
+    Parameters
+    ----------
+    terms : str or TermLibrary
+        Restoring-force terms; must contain ``q`` (``omega1^2``).  Default
+        ``"q + -q^3 + q'"``.
+    per_record : sequence of str, optional
+        Terms with one coefficient per record; default every damping-kind term.
+    weighting : {"noise", "none"}
+        ``"noise"`` weights each record by the inverse residual standard deviation of its
+        own single-record fit.
+    cond_limit : float
+
+    Attributes
+    ----------
+    result_ : GainFit
+    coef_ : array
+        Shared coefficients (``m`` first).
+
+    Examples
+    --------
+    >>> from jointid.signal.harmonics import steady_state_signals
+    >>> t = np.arange(4000) / 2000.0
+    >>> recs = []
+    >>> for w in (26.0, 29.0, 33.0):   # linear oscillator omega1 = 30, c = 0.6, gain 0.5
+    ...     q = 0.01 * np.cos(w * t); v = -0.01 * w * np.sin(w * t); a = -w**2 * q
+    ...     V = (a + 900.0 * q + 0.6 * v) / 0.5
+    ...     recs.append(steady_state_signals(t, V, a, frequency_hz=w / (2 * np.pi), n_harmonics=3))
+    >>> fit = PooledGainForceStateMapping("q + q'").fit(recs).result_
+    >>> round(fit.gain, 6), round(fit.omega1, 6)
+    (0.5, 30.0)
+    """
+
+    def __init__(self, terms="q + -q^3 + q'", per_record=None, weighting="noise", cond_limit=COND_LIMIT):
+        self.terms = terms
+        self.per_record = per_record
+        self.weighting = weighting
+        self.cond_limit = cond_limit
+
+    @single_threaded
+    def fit(self, signals_list, *, context=""):
+        """Fit a group of :class:`~jointid.signal.harmonics.StateSignals` (one per excitation frequency)."""
+        sigs = list(signals_list)
+        if not sigs:
+            raise IdentificationError("the pooled gain regression needs at least one record")
+        if self.weighting not in ("noise", "none"):
+            raise IdentificationError(f"weighting must be 'noise' or 'none', got {self.weighting!r}")
+        lib = library(self.terms)
+        if "q" not in lib.names:
+            raise IdentificationError(f"the term library {lib.names} must contain the linear stiffness term 'q'")
+        for s in sigs:
+            if not isinstance(s, StateSignals):
+                raise IdentificationError(f"expected StateSignals records, got {type(s).__name__}")
+        warn = []
+        if len(sigs) == 1:
+            warn.append(f"{context}one record only: the inertia (1/gain) and the linear stiffness are separable "
+                        f"only through the higher harmonics; pool records at several frequencies")
+        elif len({round(s.frequency_hz, 9) for s in sigs}) < 2:
+            warn.append(f"{context}all records have the same excitation frequency: the inertia and the linear "
+                        f"stiffness are not separable")
+        own_lib = [i for i, t in enumerate(lib) if t.kind == "damping"] if self.per_record is None else \
+            [lib.index(n) for n in self.per_record]
+        shared_lib = [i for i in range(len(lib)) if i not in own_lib]
+        # columns of R: 0 = inertia, 1 + i = library term i, last = excitation
+        shared_cols = [0] + [1 + i for i in shared_lib]
+        own_cols = [1 + i for i in own_lib]
+        ns, no, nr = len(shared_cols), len(own_cols), len(sigs)
+        p = ns + no * nr
+        nt = len(lib) + 1
+        blocks, weights, Rs = [], [], []
+        n_total = 0
+        for r, s in enumerate(sigs):
+            R, n = _reduced(lib, s)
+            Rs.append(R)
+            n_total += n
+            w = 1.0
+            if self.weighting == "noise":
+                single = lstsq_from_reduced(R[:, :nt], R[:, nt], n)
+                floor = 1e-13 * float(np.abs(R[:, nt]).max()) / np.sqrt(n)
+                w = 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
+            weights.append(w)
+            block = np.zeros((R.shape[0], p + 1))
+            block[:, :ns] = R[:, shared_cols]
+            block[:, ns + r * no : ns + (r + 1) * no] = R[:, own_cols]
+            block[:, -1] = R[:, nt]
+            blocks.append(w * block)
+        B = np.vstack(blocks)
+        res = lstsq_from_reduced(B[:, :p], B[:, p], n_total)
+        if not np.isfinite(res.condition_number) or res.condition_number > self.cond_limit:
+            warn.append(f"{context}pooled regression too ill-conditioned (condition number "
+                        f"{res.condition_number:.3g} > {self.cond_limit:.3g})")
+        shared = res.coefficients[:ns]
+        if not shared[0] > 0:
+            warn.append(f"{context}the fitted inertia coefficient m = {shared[0]:.4g} is not positive; the gain "
+                        f"and the derived frequencies are meaningless")
+        # consistency: each record alone, with m and the nonlinear stiffness fixed
+        iq = lib.index("q")
+        w1 = []
+        for R in Rs:
+            fixed = [0] + [1 + i for i in shared_lib if i != iq]
+            fixed_vals = np.array([shared[shared_cols.index(c)] for c in fixed])
+            free = [1 + iq] + own_cols
+            y = R[:, nt] - R[:, fixed] @ fixed_vals
+            th, *_ = np.linalg.lstsq(R[:, free], y, rcond=None)
+            ratio = th[0] / shared[0]
+            w1.append(float(np.sqrt(ratio)) if ratio > 0 else float("nan"))
+        for w_ in warn:
+            warnings.warn(w_, IllConditionedWarning, stacklevel=2)
+        names_shared = ("m",) + tuple(lib[i].coefficient for i in shared_lib)
+        self.library_ = lib
+        self.lstsq_ = res
+        self.coef_ = shared
+        self.result_ = GainFit(
+            lib.names, names_shared, shared, res.stderr[:ns], tuple(lib[i].coefficient for i in own_lib),
+            res.coefficients[ns:].reshape(nr, no), res.stderr[ns:].reshape(nr, no), res.covariance,
+            np.array([s.q_max() for s in sigs]), np.array([s.frequency_hz for s in sigs]), np.array(w1),
+            res.condition_number, np.array(weights), n_total, tuple(warn),
+        )
+        return self
+
