@@ -65,6 +65,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the rig's excitation and noise (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
+    p = sub.add_parser("import", help="turn lab exports (UFF58, MAT/Test.Lab, HDF5, CSV) into a campaign folder",
+                       epilog="example: jointid import description.toml --out campaign  (format: jointid.io.importer)")
+    p.add_argument("description", type=Path, help="import description (TOML)")
+    p.add_argument("--out", type=Path, required=True, help="campaign folder to write")
+
+    p = sub.add_parser("public-data", help="the worked examples on the public data sets in ../shared/data",
+                       epilog="example: jointid public-data --out public-out --only silverbox")
+    p.add_argument("rest", nargs=argparse.REMAINDER, help="options of the examples (--out DIR, --only NAME)")
+
     p = sub.add_parser("example", help="the seed paper's numerical example: Tables 1-3 and Figs 4-6",
                        epilog="example: jointid example --out example-out")
     p.add_argument("--out", type=Path, default=Path("example-out"), help="output folder (default: %(default)s)")
@@ -167,6 +176,20 @@ def _demo(args) -> int:
     return EXIT_OK
 
 
+def _import(args) -> int:
+    from .io.importer import import_campaign
+
+    res = import_campaign(args.description, args.out)
+    print(res.report())
+    return EXIT_PARTIAL if res.failed else EXIT_OK
+
+
+def _public_data(args) -> int:
+    from .examples_data import main as examples_main
+
+    return examples_main(args.rest)
+
+
 def _example(args) -> int:
     from .examples import run_paper_example
 
@@ -177,7 +200,7 @@ def _example(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
-COMMANDS = {"demo": _demo, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
+COMMANDS = {"demo": _demo, "import": _import, "public-data": _public_data, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
 
 
 def main(argv=None) -> int:

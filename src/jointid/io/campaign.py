@@ -14,7 +14,7 @@ A campaign is a folder with a manifest::
 
 A CSV record has one header row: ``time`` [s], ``force``, then the acceleration
 column(s) (``accel`` in a modal campaign).  Other record formats (UFF 58, HDF5, MAT) are
-read by extension through :mod:`jointid.io` readers where available.
+read by extension (UFF 58, HDF5); other exports are converted with ``jointid import``.
 
 Nothing is guessed silently: a path leaving the folder (that record is refused), a missing file, a missing
 column, values that are not finite, columns of different lengths and a time base that is
@@ -216,11 +216,10 @@ def _read_other(path: Path, spec: RecordSpec) -> dict:
             from .uff import read_uff as reader
         elif suffix in (".h5", ".hdf5"):
             from .hdf5 import read_hdf5 as reader
-        elif suffix == ".mat":
-            from .matlab import read_mat as reader
         else:
             raise RecordError(
-                f"{where(spec.file, spec.index)}unknown record format {suffix!r}; expected .csv, .uff, .h5 or .mat"
+                f"{where(spec.file, spec.index)}unknown record format {suffix!r}; expected .csv, .uff or .h5 "
+                f"(MAT files and other exports: convert them with 'jointid import')"
             )
     except ImportError as exc:  # pragma: no cover - format reader not installed
         raise RecordError(f"{where(spec.file, spec.index)}cannot read {suffix} files: {exc}") from exc
