@@ -70,3 +70,9 @@ def test_import_description_errors(tmp_path):
     assert main(["import", str(tmp_path / "d.toml"), "--out", str(tmp_path / "c")]) == 2
     (tmp_path / "d.toml").write_text('[[record]]\nfile = "nope.mat"\nchannels = { force = "x" }\n')
     assert main(["import", str(tmp_path / "d.toml"), "--out", str(tmp_path / "c")]) == 2
+
+
+def test_public_data_command(shared_data, tmp_path, capsys):
+    assert main(["public-data", "--only", "f16", "--out", str(tmp_path)]) == 0
+    assert "softening" in capsys.readouterr().out
+    assert (tmp_path / "results.json").is_file()

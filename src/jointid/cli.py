@@ -72,7 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("public-data", help="the worked examples on the public data sets in ../shared/data",
                        epilog="example: jointid public-data --out public-out --only silverbox")
-    p.add_argument("rest", nargs=argparse.REMAINDER, help="options of the examples (--out DIR, --only NAME)")
+    p.add_argument("--out", type=Path, help="folder for the figures and results.json")
+    p.add_argument("--only", choices=("silverbox", "benchmark", "unesp", "f16"), action="append",
+                   help="run only these examples (repeatable)")
 
     p = sub.add_parser("example", help="the seed paper's numerical example: Tables 1-3 and Figs 4-6",
                        epilog="example: jointid example --out example-out")
@@ -184,12 +186,6 @@ def _import(args) -> int:
     return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
-def _public_data(args) -> int:
-    from .examples_data import main as examples_main
-
-    return examples_main(args.rest)
-
-
 def _example(args) -> int:
     from .examples import run_paper_example
 
@@ -200,10 +196,15 @@ def _example(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
-COMMANDS = {"demo": _demo, "import": _import, "public-data": _public_data, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
+COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["public-data"]:  # its options belong to the examples' own parser
+        from .examples_data import main as examples_main
+
+        return examples_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
