@@ -20,8 +20,18 @@ import numpy as np
 __all__ = ["atomic_write", "write_json", "write_csv", "to_jsonable", "atomic_savefig"]
 
 
-def atomic_write(path, data, mode="w") -> Path:
-    """Write ``data`` (str or bytes) to ``path`` atomically; parent folders are created."""
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write(path, data) -> Path:
+    """Write ``data`` (str or bytes) to ``path`` atomically; parent folders are created.
+
+    The file gets the permissions of an ordinary new file (``0666`` less the umask), not
+    the private mode of the temporary file it is renamed from.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     binary = isinstance(data, (bytes, bytearray))
@@ -31,6 +41,7 @@ def atomic_write(path, data, mode="w") -> Path:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         try:

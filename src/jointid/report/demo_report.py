@@ -26,20 +26,10 @@ from .rig_plots import (
     plot_record,
 )
 
-__all__ = ["demo_figures", "save_figures", "demo_sections", "write_demo_html", "check_rows", "CachedFigure"]
+__all__ = ["demo_figures", "save_figures", "demo_sections", "write_demo_html", "check_rows"]
 
 #: Figures also written as SVG (line plots, small files).
 SVG_FIGURES = ("fig10_nonlinear_frf", "fig13_damping_law_120", "fig14_damping_law_540", "fig19_filtered_unfiltered")
-
-
-class CachedFigure:
-    """A rendered PNG that :mod:`jointid.report.html` can embed like a figure (no re-rendering)."""
-
-    def __init__(self, png: bytes):
-        self.png = png
-
-    def savefig(self, buf, format="png", **kw):  # noqa: A002 - matplotlib's signature
-        buf.write(self.png)
 
 
 def _pl(p) -> str:
@@ -249,7 +239,7 @@ def save_figures(figs, folder, svg=SVG_FIGURES, dpi=100) -> tuple:
     paths : dict
         Figure name -> written paths.
     cached : list
-        ``(name, caption, CachedFigure)``: the PNG bytes, so that the HTML embeds them
+        ``(name, caption, PNG bytes)``: the PNG bytes, so that the HTML embeds them
         without drawing the figures again.
     """
     folder = Path(folder)
@@ -265,7 +255,7 @@ def save_figures(figs, folder, svg=SVG_FIGURES, dpi=100) -> tuple:
             fig.savefig(sbuf, format="svg")
             paths.append(atomic_write(folder / f"{name}.svg", sbuf.getvalue()))
         out[name] = paths
-        cached.append((name, caption, CachedFigure(png)))
+        cached.append((name, caption, png))
     return out, cached
 
 

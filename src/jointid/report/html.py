@@ -15,7 +15,7 @@ import numpy as np
 
 from ..io.results import atomic_write
 
-__all__ = ["Section", "render_html", "write_html", "figure_to_data_uri"]
+__all__ = ["Section", "render_html", "write_html", "figure_to_data_uri", "figure_to_png"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;max-width:1100px;color:#222;
@@ -41,13 +41,20 @@ class Section:
     title: str
     paragraphs: list = field(default_factory=list)
     tables: list = field(default_factory=list)  # (caption, rows: list[dict], columns or None)
-    figures: list = field(default_factory=list)  # (caption, figure)
+    figures: list = field(default_factory=list)  # (caption, matplotlib figure or PNG bytes)
+
+
+def figure_to_png(fig, dpi=110) -> bytes:
+    """PNG bytes of a matplotlib figure."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
 
 
 def figure_to_data_uri(fig, dpi=110) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    """``data:`` URI of a figure, or of PNG bytes already rendered."""
+    png = bytes(fig) if isinstance(fig, (bytes, bytearray)) else figure_to_png(fig, dpi)
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
 def _cell(v) -> str:

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..identify.hysteresis import hysteresis_loop
-from ..io.results import atomic_savefig, atomic_write, write_csv, write_json
-from .html import Section, write_html
+from ..io.results import atomic_write, write_csv, write_json
+from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
 from .tables import group_rows, record_rows
 
@@ -39,9 +39,10 @@ def write_results(result, out_dir, figures=True, html=True) -> dict:
                 for p, l in result.damping_laws.items()]
     cols = ["preload"] + [f"c{k}" for k in range(result.settings.damping_order + 1)]
     paths["damping_laws"] = write_csv(out / "damping_laws.csv", law_rows, cols)
-    figs = campaign_figures(result) if (figures or html) else []
+    # each figure is rendered once; the same PNG bytes are written and embedded
+    figs = [(n, c, figure_to_png(f, dpi=120)) for n, c, f in campaign_figures(result)] if (figures or html) else []
     if figures:
-        paths["figures"] = [atomic_savefig(fig, out / "figures" / name, dpi=120) for name, _, fig in figs]
+        paths["figures"] = [atomic_write(out / "figures" / name, png) for name, _, png in figs]
     if html:
         paths["html"] = out / "report.html"
         write_html(paths["html"], f"jointid: {result.name}", campaign_sections(result, figs),
