@@ -1,7 +1,6 @@
 import json
 
 import numpy as np
-import pytest
 
 from jointid.cli import main
 from jointid.io.campaign import write_csv_record

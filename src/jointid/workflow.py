@@ -11,14 +11,13 @@ from __future__ import annotations
 import html
 import warnings
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
 from ._blas import single_threaded
 from .errors import IdentificationError, JointidError, JointidWarning, where
 from .identify.fsm import ForceStateMapping, PooledFit, PooledForceStateMapping, RecordFit, band_average
-from .identify.laws import DampingLaw, PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
+from .identify.laws import PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
 from .identify.terms import library
 from .io.campaign import Campaign, RecordSpec, load_campaign, read_record
 from .signal.harmonics import StateSignals, steady_state_signals

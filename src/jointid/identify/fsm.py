@@ -26,7 +26,7 @@ import numpy as np
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from ..signal.harmonics import StateSignals
-from .regression import LstsqResult, lstsq_from_reduced, reduce_blocks
+from .regression import LstsqResult, lstsq_from_reduced, pooled_lstsq, reduce_blocks
 from .terms import TermLibrary, library
 
 __all__ = [
@@ -419,35 +419,18 @@ class PooledForceStateMapping:
             own_idx = [lib.index(n) for n in self.per_record]
         shared_idx = [i for i in range(len(lib)) if i not in own_idx]
         ns, no, nr = len(shared_idx), len(own_idx), len(signals_list)
-        p = ns + no * nr
-        blocks, fits = [], []
-        n_total = 0
         nt = len(lib)
-        for r, s in enumerate(signals_list):
-            R, n = _reduced(lib, s, self.filtered)  # columns: terms in library order, y_fit, y_raw
-            single = lstsq_from_reduced(R[:, :nt], R[:, nt], n, R[:, nt + 1])
-            fits.append(single)
-            n_total += n
-            w = 1.0
-            if self.weighting == "noise":
-                floor = 1e-13 * float(np.abs(R[:, nt]).max()) / np.sqrt(n)
-                w = 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
-            block = np.zeros((R.shape[0], p + 2))
-            block[:, :ns] = R[:, shared_idx]
-            block[:, ns + r * no : ns + (r + 1) * no] = R[:, own_idx]
-            block[:, -2:] = R[:, nt:]
-            blocks.append(w * block)
-        B = np.vstack(blocks)
-        res = lstsq_from_reduced(B[:, :p], B[:, p], n_total, B[:, p + 1])
+        # columns of each R: terms in library order, then y_fit, y_raw
+        reduced = [_reduced(lib, s, self.filtered) for s in signals_list]
+        res, weights = pooled_lstsq(reduced, shared_idx, own_idx, nt, nt + 1,
+                                    self.weighting if self.weighting == "noise" else "none")
+        n_total = res.n_samples
         shared_part = LstsqResult(
             res.coefficients[:ns], res.stderr[:ns], res.covariance[:ns, :ns], res.condition_number, res.rss, n_total
         )
         warn = _resolution_warnings([lib[i] for i in shared_idx], shared_part, self.cond_limit, context)
         for w in warn:
             warnings.warn(w, IllConditionedWarning, stacklevel=2)
-        weights = np.array(
-            [1.0 / max(f.sigma, np.finfo(float).tiny) if self.weighting == "noise" else 1.0 for f in fits]
-        )
         self.library_ = lib
         self.lstsq_ = res
         self.result_ = PooledFit(

@@ -57,7 +57,7 @@ from ..signal.harmonics import (
     fit_harmonics,
 )
 from .broadband import delta_method
-from .regression import lstsq_from_reduced, reduce_blocks
+from .regression import pooled_lstsq, reduce_blocks
 from .terms import library
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
@@ -413,27 +413,11 @@ class PooledGainForceStateMapping:
         shared_cols = [0] + [1 + i for i in shared_lib]
         own_cols = [1 + i for i in own_lib]
         ns, no, nr = len(shared_cols), len(own_cols), len(sigs)
-        p = ns + no * nr
         nt = len(lib) + 1
-        blocks, weights, Rs = [], [], []
-        n_total = 0
-        for r, s in enumerate(sigs):
-            R, n = _reduced(lib, s)
-            Rs.append(R)
-            n_total += n
-            w = 1.0
-            if self.weighting == "noise":
-                single = lstsq_from_reduced(R[:, :nt], R[:, nt], n)
-                floor = 1e-13 * float(np.abs(R[:, nt]).max()) / np.sqrt(n)
-                w = 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
-            weights.append(w)
-            block = np.zeros((R.shape[0], p + 1))
-            block[:, :ns] = R[:, shared_cols]
-            block[:, ns + r * no : ns + (r + 1) * no] = R[:, own_cols]
-            block[:, -1] = R[:, nt]
-            blocks.append(w * block)
-        B = np.vstack(blocks)
-        res = lstsq_from_reduced(B[:, :p], B[:, p], n_total)
+        reduced = [_reduced(lib, s) for s in sigs]
+        Rs = [R for R, _ in reduced]
+        res, weights = pooled_lstsq(reduced, shared_cols, own_cols, nt, weighting=self.weighting)
+        n_total = res.n_samples
         if not np.isfinite(res.condition_number) or res.condition_number > self.cond_limit:
             warn.append(f"{context}pooled regression too ill-conditioned (condition number "
                         f"{res.condition_number:.3g} > {self.cond_limit:.3g})")

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-__all__ = ["LstsqResult", "scaled_lstsq", "qr_reduce", "reduce_blocks", "lstsq_from_reduced"]
+__all__ = ["LstsqResult", "scaled_lstsq", "qr_reduce", "reduce_blocks", "lstsq_from_reduced", "pooled_lstsq"]
 
 
 @dataclass(frozen=True)
@@ -146,3 +146,52 @@ def scaled_lstsq(X, y) -> LstsqResult:
     X = np.asarray(X, dtype=float)
     R = qr_reduce(X, y)
     return lstsq_from_reduced(R[:, :-1], R[:, -1], X.shape[0])
+
+
+def pooled_lstsq(reduced, shared, own, rhs, noise=None, weighting="noise"):
+    """Pooled least squares over records: shared columns common to all, ``own`` columns per record.
+
+    Parameters
+    ----------
+    reduced : list of (R, n)
+        Each record's reduced factor (:func:`reduce_blocks`) and its number of samples.
+    shared, own : sequence of int
+        Columns of ``R`` whose coefficients are common to all records / one per record.
+    rhs : int
+        Column of the right-hand side.
+    noise : int, optional
+        Column of the right-hand side whose residual measures the noise (see
+        :func:`lstsq_from_reduced`); ``rhs`` itself by default.
+    weighting : {"noise", "none"}
+        ``"noise"`` weights each record by the inverse residual standard deviation of its
+        own fit (on all of its columns), so records measured with different noise levels
+        count by their information.
+
+    Returns
+    -------
+    result : LstsqResult
+        Coefficients ordered ``shared``, then ``own`` of record 0, record 1, ...
+    weights : ndarray
+        The weight of each record.
+    """
+    shared, own = list(shared), list(own)
+    ns, no, nr = len(shared), len(own), len(reduced)
+    p = ns + no * nr
+    noise = rhs if noise is None else noise
+    blocks, weights, n_total = [], [], 0
+    for r, (R, n) in enumerate(reduced):
+        n_total += n
+        w = 1.0
+        if weighting == "noise":
+            single = lstsq_from_reduced(R[:, shared + own], R[:, rhs], n, R[:, noise])
+            floor = 1e-13 * float(np.abs(R[:, rhs]).max()) / np.sqrt(n)
+            w = 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
+        block = np.zeros((R.shape[0], p + 2))
+        block[:, :ns] = R[:, shared]
+        block[:, ns + r * no : ns + (r + 1) * no] = R[:, own]
+        block[:, p] = R[:, rhs]
+        block[:, p + 1] = R[:, noise]
+        blocks.append(w * block)
+        weights.append(w)
+    B = np.vstack(blocks)
+    return lstsq_from_reduced(B[:, :p], B[:, p], n_total, B[:, p + 1]), np.array(weights)

@@ -376,7 +376,7 @@ def demo_sections(demo, figs) -> list:
         "Force-state mapping of Q - q'' = omega1^2 q - k3 q^3 + c q' per record and pooled per (preload, force level): "
         "omega1 and k3 shared, one damping coefficient per record. The rig's linear f1 is the stuck-joint first "
         "frequency; its joint is not a cubic spring plus a viscous damper, so k3 and c are the model's equivalent "
-        f"values. The rig's modal cubic coefficient alone is "
+        "values. The rig's modal cubic coefficient alone is "
         + ", ".join(f"{pr.rig.modal_cubic_coefficient:.3g} ({_pl(pr.preload)} N)" for pr in demo.preloads)
         + "; the Iwan joint's softening adds to it."])
     ident.tables.append(("Table 5 analogue", [r for pr in demo.preloads for r in pr.table5_rows()], None))

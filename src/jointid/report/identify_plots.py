@@ -75,7 +75,7 @@ def plot_hysteresis(loop, ax=None, label=None, show_identified=True):
     kind = "filtered" if loop.filtered else "unfiltered"
     q = np.append(loop.q, loop.q[:1])
     m = np.append(loop.measured, loop.measured[:1])
-    line = ax.plot(q, m, "-", lw=1.2, label=label or f"measured ({kind}) {loop.frequency_hz:.4g} Hz")
+    ax.plot(q, m, "-", lw=1.2, label=label or f"measured ({kind}) {loop.frequency_hz:.4g} Hz")
     if show_identified:
         i = np.append(loop.identified, loop.identified[:1])
         ax.plot(q, i, "--", lw=1.2, color="k", label="identified")
