@@ -135,3 +135,33 @@ periods = 12.5
     page = (out / "report.html").read_text()
     assert "cli &lt;test&gt;" in page and "<test>" not in page  # text from input files is escaped
     assert page.count("data:image/png;base64,") >= 4  # figures embedded: the page opens offline
+
+
+def test_unknown_force_gain_gives_the_calibrated_result(tmp_path):
+    """A campaign whose force column is a voltage (force / 0.37) identifies the same omega1, k3, c(q_max)."""
+    from jointid.io.campaign import load_campaign, read_record, write_campaign, write_csv_record
+
+    cfg = paper_config(n_frequencies=15, noise=0.0, periods=12)
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "force")
+    entries = []
+    for spec in load_campaign(camp).records:
+        rec = read_record(spec)
+        write_csv_record(tmp_path / "volt" / spec.file, rec.time,
+                         {"force": rec.channels["force"] / 0.37, "accel": rec.channels["accel"]})
+        entries.append({"file": spec.file, "force_level": spec.force_level, "preload": spec.preload})
+    write_campaign(tmp_path / "volt", "voltage", entries)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = identify_campaign(camp, n_harmonics=7)
+        res = identify_campaign(tmp_path / "volt", n_harmonics=7, force_gain="unknown")
+    g, g0 = res.groups[0], ref.groups[0]
+    assert g.gain.gain == pytest.approx(0.37, rel=1e-6)
+    assert g.pooled.omega1 == pytest.approx(EXACT["omega1"], rel=1e-8)
+    assert g.pooled.k3 == pytest.approx(g0.pooled.k3, rel=1e-5)
+    law, law0 = res.damping_laws["example"], ref.damping_laws["example"]
+    assert np.allclose(law.coefficients, law0.coefficients, rtol=1e-5)
+    s = res.summary()
+    assert s["groups"][0]["force_gain"] == pytest.approx(0.37, rel=1e-6)
+    assert all(abs(r["omega1"] / 170 - 1) < 1e-6 and r["k3"] is None for r in s["records"])
+    assert main(["identify", str(tmp_path / "volt"), "--out", str(tmp_path / "o"), "--quiet", "--no-figures",
+                 "--force-gain", "unknown", "--harmonics", "7"]) == 0

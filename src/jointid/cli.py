@@ -31,6 +31,9 @@ def _add_identify_options(p):
     p.add_argument("--damping-order", type=int, default=2, help="order of c(q_max) (default: %(default)s)")
     p.add_argument("--weighting", choices=("noise", "none"), default="noise",
                    help="record weights in the pooled regression (default: %(default)s)")
+    p.add_argument("--force-gain", choices=("known", "unknown"), default="known",
+                   help="'unknown' when the force column is e.g. a shaker voltage: the gain is identified "
+                        "with the inertia term and omega1, k3, c are gain-free (default: %(default)s)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no report on stdout")
 
@@ -153,7 +156,7 @@ def _identify(args) -> int:
 
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
-        weighting=args.weighting, progress=not args.quiet,
+        weighting=args.weighting, force_gain=args.force_gain, progress=not args.quiet,
     )
     write_results(result, args.out, figures=not args.no_figures)
     if not args.quiet:

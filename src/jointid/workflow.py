@@ -17,6 +17,7 @@ import numpy as np
 from ._blas import single_threaded
 from .errors import IdentificationError, JointidError, JointidWarning, where
 from .identify.fsm import ForceStateMapping, PooledFit, PooledForceStateMapping, RecordFit, band_average
+from .identify.gain import PooledGainForceStateMapping
 from .identify.laws import PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
 from .identify.terms import library
 from .io.campaign import Campaign, RecordSpec, load_campaign, read_record
@@ -39,6 +40,13 @@ class IdentifySettings:
         Order of the ``c(q_max)`` polynomial.
     weighting : {"noise", "none"}
         Record weights in the pooled regression.
+    force_gain : {"known", "unknown"}
+        ``"unknown"`` when the force column is proportional to the force with an unknown
+        factor (a shaker voltage): each group's pooled regression then includes the
+        inertia term and identifies the gain; ``omega1``, ``k3`` and ``c`` are gain-free
+        (divided by the fitted inertia coefficient), the single-record ``omega1`` is the
+        record's own with the shared inertia and cubic held, and single-record ``k3`` is
+        not reported (inertia and stiffness separate only across frequencies).
     progress : bool
         Show a progress bar.
     """
@@ -47,7 +55,12 @@ class IdentifySettings:
     n_harmonics: int = 5
     damping_order: int = 2
     weighting: str = "noise"
+    force_gain: str = "known"
     progress: bool = False
+
+    def __post_init__(self):
+        if self.force_gain not in ("known", "unknown"):
+            raise IdentificationError(f"force_gain must be 'known' or 'unknown', got {self.force_gain!r}")
 
     def summary(self) -> dict:
         return {
@@ -55,6 +68,7 @@ class IdentifySettings:
             "n_harmonics": self.n_harmonics,
             "damping_order": self.damping_order,
             "weighting": self.weighting,
+            "force_gain": self.force_gain,
         }
 
 
@@ -73,6 +87,7 @@ class RecordOutcome:
     joint_force: float | None = None
     modal_residual: float | None = None
     warnings: tuple = ()
+    omega1_own: float | None = None  # with an unknown force gain: the record's omega1, shared inertia held
 
     @property
     def ok(self) -> bool:
@@ -110,6 +125,9 @@ class RecordOutcome:
                 condition_number=self.fit.condition_number,
                 accel_residual_rms=self.signals.accel_residual_rms,
             )
+            if self.omega1_own is not None:  # force gain unknown: the single-record fit is in excitation units
+                d.update(omega1=self.omega1_own, f1_hz=self.omega1_own / (2 * np.pi), k3=None, c=self.c_pooled,
+                         coefficients=None, stderr=None)
         if self.modal_residual is not None:
             d["modal_residual"] = self.modal_residual
         d["warnings"] = list(self.warnings)
@@ -127,9 +145,13 @@ class GroupResult:
     band: dict | None
     power_law: PowerLaw | None = None
     power_law_error: str | None = None
+    gain: object = None  # GainFit when the force gain was identified
 
     def summary(self) -> dict:
         d = {"preload": self.preload, "force_level": self.force_level, "records": list(self.record_indices)}
+        if self.gain is not None:
+            g, se = self.gain.derived()["gain"]
+            d.update(force_gain=g, force_gain_stderr=se, omega1_per_record=list(self.gain.omega1_per_record))
         if self.pooled is not None:
             d.update(
                 omega1=self.pooled.omega1,
@@ -240,6 +262,28 @@ def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) 
     )
 
 
+def _gain_free(gain, terms) -> PooledFit:
+    """A :class:`PooledFit` of the gain-free coefficients (``theta / m``) of a gain fit."""
+    d = gain.derived()
+    names = tuple(n for n in gain.shared_names if n != "m")
+    vals, errs = [], []
+    for n in names:
+        if n == "omega1^2":
+            w, sw = d["omega1"]
+            vals.append(w**2)
+            errs.append(2 * w * sw)
+        else:
+            v, e = d[f"{n}/m"]
+            vals.append(v)
+            errs.append(e)
+    own = np.empty_like(gain.own)
+    own_se = np.empty_like(gain.own)
+    for j, n in enumerate(gain.own_names):
+        own[:, j], own_se[:, j] = gain.per_record(n)
+    return PooledFit(library(terms).names, names, np.array(vals), np.array(errs), gain.own_names, own, own_se,
+                     gain.q_max, gain.frequency_hz, gain.condition_number, gain.weights, gain.n_samples, gain.warnings)
+
+
 def _group_key(value):
     return (0, value) if isinstance(value, (int, float)) else (1, str(value))
 
@@ -290,20 +334,33 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     for key in keys:
         members = [i for i, o in enumerate(outcomes) if o.spec.group == key and o.ok]
         pooled = band = None
+        gain = None
         if members:
+            ctx = f"group preload={key[0]}, force_level={key[1]}: "
+            sigs = [outcomes[i].signals for i in members]
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", JointidWarning)
-                pooled = PooledForceStateMapping(settings.terms, weighting=settings.weighting).fit(
-                    [outcomes[i].signals for i in members], context=f"group preload={key[0]}, force_level={key[1]}: "
-                ).result_
+                if settings.force_gain == "known":
+                    pooled = PooledForceStateMapping(settings.terms, weighting=settings.weighting).fit(
+                        sigs, context=ctx).result_
+                else:
+                    gain = PooledGainForceStateMapping(settings.terms, weighting=settings.weighting).fit(
+                        sigs, context=ctx).result_
+                    pooled = _gain_free(gain, settings.terms)
             for w in pooled.warnings:
                 warnings.warn(w, JointidWarning, stacklevel=2)
-            band = band_average([outcomes[i].fit for i in members])
+            if gain is None:
+                band = band_average([outcomes[i].fit for i in members])
+            else:
+                band = {"omega1": float(np.mean(gain.omega1_per_record)), "k3": None, "n_records": len(members)}
+                for j, i in enumerate(members):
+                    outcomes[i] = replace(outcomes[i], omega1_own=float(gain.omega1_per_record[j]))
             if "c" in pooled.own_names:
                 for j, i in enumerate(members):
                     outcomes[i] = replace(outcomes[i], c_pooled=float(pooled.get("c")[j]),
                                            c_pooled_stderr=float(pooled.get_stderr("c")[j]))
-        groups.append(GroupResult(key[0], key[1], tuple(outcomes[i].spec.index for i in members), pooled, band))
+        groups.append(GroupResult(key[0], key[1], tuple(outcomes[i].spec.index for i in members), pooled, band,
+                                  gain=gain))
 
     # damping law per preload over all its records (pooled c)
     laws, law_errors = {}, {}

@@ -97,20 +97,23 @@ def campaign_figures(result) -> list:
                 continue
             tag = f"{slug(p)}_F{slug(g.force_level)}"
             f = np.array([r.signals.frequency_hz for r in members])
-            vals = {"f1 [Hz]": [r.fit.omega1 / (2 * np.pi) for r in members]}
-            if members[0].fit.k3 is not None:
-                vals["k3"] = [r.fit.k3 for r in members]
-            if members[0].fit.c is not None:
-                vals["c"] = [r.fit.c for r in members]
+            summaries = [r.summary() for r in members]
+            vals = {"f1 [Hz]": [d["f1_hz"] for d in summaries]}
+            for name in ("k3", "c"):
+                if all(d[name] is not None for d in summaries):
+                    vals[name] = [d[name] for d in summaries]
             axes = plot_parameters_vs_frequency(f, vals)
             axes[0].set_title(f"per-record parameters, preload {p}, F = {g.force_level}")
             written.append((f"parameters_{tag}.png", f"per-record parameters, preload {p}, F = {g.force_level}",
                             axes[0].figure))
-            best = max(members, key=lambda r: r.fit.q_max)
+            if g.gain is not None:  # the force column is not a force: no loops in force units
+                continue
+            j = int(np.argmax([r.fit.q_max for r in members]))
+            best = members[j]
             axes = new_axes(None, figsize=(9.0, 3.8), ncols=2)
-            theta = np.array(best.fit.coefficients)
-            if "c" in best.fit.coefficient_names and best.c_pooled is not None:
-                theta[best.fit.coefficient_names.index("c")] = best.c_pooled
+            # the identified model of the group: shared omega1^2, k3 and this record's own damping
+            theta = np.array([g.pooled.get(n) if n in g.pooled.shared_names else g.pooled.get(n)[j]
+                              for n in best.fit.coefficient_names])
             for ax, filt in zip(axes, (True, False)):
                 loop = hysteresis_loop(best.signals, best.fit.terms, theta, filtered=filt)
                 plot_hysteresis(loop, ax=ax, show_identified=True)
