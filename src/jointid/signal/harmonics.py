@@ -284,13 +284,18 @@ def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
 
     The model is a constant plus ``n_harmonics`` harmonics of ``omega``; fitting the
     harmonics together with the fundamental keeps a distorted force (a shaker's
-    harmonics) from biasing the frequency.  Returns ``(omega, explained fraction)``.
+    harmonics) from biasing the frequency.  Returns ``(omega, explained fraction)``, the
+    fraction from the fit of the last iteration (one step earlier: the step is tiny).
     """
     k = np.arange(1, n_harmonics + 1)
     max_step = 0.5 * np.pi / tau[-1]
+    xx = max(float(np.sum((x - x.mean()) ** 2)), np.finfo(float).tiny)
+    fraction = 0.0
     for _ in range(iterations):
         A = _basis(tau, omega, n_harmonics)
         coef = _gram_lstsq(A, x)
+        r = x - A @ coef
+        fraction = 1.0 - float(r @ r) / xx
         # d/d omega of sum a_k cos(k w t) + b_k sin(k w t), with the linear parameters
         # projected out (variable projection)
         J = tau * (A[:, 2::2] @ (-k * coef[1::2]) + A[:, 1::2] @ (k * coef[2::2]))
@@ -298,26 +303,26 @@ def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
         den = Jp @ Jp
         if den <= 0:
             break
-        step = float(np.clip((Jp @ (x - A @ coef)) / den, -max_step, max_step))
+        step = float(np.clip((Jp @ r) / den, -max_step, max_step))
         omega = omega + step
-        if abs(step) * tau[-1] < 1e-9:  # phase change over the record below 1e-9 rad
+        if abs(step) * tau[-1] < 1e-6:  # phase change over the record below 1e-6 rad
             break
-    A = _basis(tau, omega, n_harmonics)
-    coef = _gram_lstsq(A, x)
-    fraction = 1.0 - np.sum((x - A @ coef) ** 2) / max(np.sum((x - x.mean()) ** 2), np.finfo(float).tiny)
     return float(omega), float(fraction)
 
 
 def _refine_progressively(tau, x, omega, n_harmonics, first=32768, growth=8):
     """Refine on a growing prefix of the record so that each stage starts well inside
-    the convergence region of the next, longer one (cost: about two passes of the record)."""
+    the convergence region of the next, longer one; Gauss-Newton converges
+    quadratically, so a longer stage needs one or two steps (about two passes in all)."""
     n = tau.size
     m = min(n, first)
+    iterations = 8
     while True:
-        omega, fraction = _periodic_fit_gn(tau[:m], x[:m], omega, n_harmonics, iterations=8 if m == first else 3)
+        omega, fraction = _periodic_fit_gn(tau[:m], x[:m], omega, n_harmonics, iterations=iterations)
         if m == n:
             return omega, fraction
         m = min(n, m * growth)
+        iterations = 2
 
 
 @single_threaded
