@@ -62,6 +62,7 @@ from scipy import fft as sfft
 from scipy import signal as ssignal
 
 from ..errors import RecordError
+from .harmonics import check_signal
 
 __all__ = [
     "MEASURED_KINDS",
@@ -87,19 +88,6 @@ EXCITED_REL = 1e-2
 
 
 # ----------------------------------------------------------------------------- helpers
-def _as_signal(x, name, n=None) -> np.ndarray:
-    x = np.asarray(x, dtype=float)
-    if x.ndim != 1:
-        raise RecordError(f"channel {name!r}: expected a 1-D signal, got shape {x.shape}")
-    if n is not None and x.size != n:
-        raise RecordError(f"channel {name!r}: has {x.size} samples, expected {n} like the other channels")
-    bad = ~np.isfinite(x)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise RecordError(f"channel {name!r}: non-finite value {x[i]!r} at sample {i} ({int(bad.sum())} in all)")
-    return x
-
-
 def _check_fs(fs) -> float:
     fs = float(fs)
     if not np.isfinite(fs) or fs <= 0:
@@ -214,7 +202,7 @@ def detect_period(x, *, min_period=8, max_period=None, threshold=0.9, channel="i
     RecordError
         If no lag reaches the threshold (not a periodic record, or fewer than 2 periods).
     """
-    x = _as_signal(x, channel)
+    x = check_signal(x, channel)
     x = x - x.mean()
     n = x.size
     if not np.any(x):
@@ -266,7 +254,7 @@ def find_periodic_segments(x, period, *, rtol=0.05, min_length=None, channel="in
     list of slice
         Periodic stretches, in order.
     """
-    x = _as_signal(x, channel)
+    x = check_signal(x, channel)
     period = int(period)
     if period < 1 or period >= x.size:
         raise RecordError(f"channel {channel!r}: period must be between 1 and {x.size - 1} samples, got {period}")
@@ -456,7 +444,7 @@ def average_periods(channels, fs, *, period=None, skip_periods=0, n_periods=None
     n = None
     data = {}
     for c in names:
-        data[c] = _as_signal(channels[c], c, n)
+        data[c] = check_signal(channels[c], c, n)
         n = data[c].size
     if period is None:
         period = detect_period(data[input], channel=input)
@@ -613,8 +601,8 @@ def periodic_states(force, response, fs, *, measured="displacement", band=None, 
     """
     fs = _check_fs(fs)
     fname, rname = channels
-    force = _as_signal(force, fname)
-    response = _as_signal(response, rname, force.size)
+    force = check_signal(force, fname)
+    response = check_signal(response, rname, force.size)
     k = _order(measured)
     n = force.size
     if n < 4:
@@ -687,9 +675,9 @@ def random_states(t, force, response, *, measured="acceleration", band, method="
         the band (no valid samples left).
     """
     fname, rname = channels
-    t = _as_signal(t, "time")
-    force = _as_signal(force, fname, t.size)
-    response = _as_signal(response, rname, t.size)
+    t = check_signal(t, "time")
+    force = check_signal(force, fname, t.size)
+    response = check_signal(response, rname, t.size)
     k = _order(measured)
     n = t.size
     dt = (t[-1] - t[0]) / (n - 1)

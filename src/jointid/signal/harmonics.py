@@ -29,6 +29,7 @@ from ..errors import RecordError
 __all__ = [
     "HarmonicSeries",
     "StateSignals",
+    "check_signal",
     "check_time_base",
     "estimate_frequency",
     "fit_harmonics",
@@ -80,7 +81,8 @@ def check_time_base(t, *, channel="time", rtol=1e-2) -> float:
     return float(dt)
 
 
-def _check_signal(x, name, n=None):
+def check_signal(x, name, n=None) -> np.ndarray:
+    """A 1-D finite float signal of ``n`` samples (when given), or a :class:`RecordError` naming the channel."""
     x = np.asarray(x, dtype=float)
     if x.ndim != 1:
         raise RecordError(f"channel {name!r}: expected a 1-D signal, got shape {x.shape}")
@@ -463,10 +465,10 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
         frequency found, fewer than two periods, or harmonics above Nyquist.
     """
     tname, fname, aname = channels
-    t = _check_signal(t, tname)
+    t = check_signal(t, tname)
     check_time_base(t, channel=tname)
-    force = _check_signal(force, fname, t.size)
-    accel = _check_signal(accel, aname, t.size)
+    force = check_signal(force, fname, t.size)
+    accel = check_signal(accel, aname, t.size)
     if not np.any(force - force.mean()):
         raise RecordError(f"channel {fname!r}: the force is zero (or constant); the record carries no excitation")
     given = frequency_hz is not None
