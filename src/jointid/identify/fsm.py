@@ -252,6 +252,19 @@ class ForceStateMapping:
         return self
 
 
+def pooled_inputs(signals_list, weighting, what) -> list:
+    """Check the arguments of a pooled estimator: a non-empty list of records, a known weighting."""
+    sigs = list(signals_list)
+    if not sigs:
+        raise IdentificationError(f"the {what} needs at least one record")
+    if weighting not in ("noise", "none"):
+        raise IdentificationError(f"weighting must be 'noise' or 'none', got {weighting!r}")
+    for s in sigs:
+        if not isinstance(s, StateSignals):
+            raise IdentificationError(f"the {what} expects StateSignals records, got {type(s).__name__}")
+    return sigs
+
+
 def band_average(fits) -> dict:
     """Average of single-record coefficients over a band of records (seed Tables 1, 3).
 
@@ -405,11 +418,7 @@ class PooledForceStateMapping:
 
     @single_threaded
     def fit(self, signals_list, *, context=""):
-        signals_list = list(signals_list)
-        if not signals_list:
-            raise IdentificationError("pooled regression needs at least one record")
-        if self.weighting not in ("noise", "none"):
-            raise IdentificationError(f"weighting must be 'noise' or 'none', got {self.weighting!r}")
+        signals_list = pooled_inputs(signals_list, self.weighting, "pooled regression")
         lib = library(self.terms)
         for s in signals_list:
             _check_terms(lib, s.acceleration.n_harmonics)

@@ -57,12 +57,12 @@ from ..signal.harmonics import (
     fit_harmonics,
 )
 from .broadband import delta_method
+from .fsm import COND_LIMIT, pooled_inputs
 from .regression import pooled_lstsq, reduce_blocks
 from .terms import library
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
 
-COND_LIMIT = 1e8
 _KINDS = {"displacement": 0, "velocity": 1, "acceleration": 2}
 
 
@@ -388,17 +388,10 @@ class PooledGainForceStateMapping:
     @single_threaded
     def fit(self, signals_list, *, context=""):
         """Fit a group of :class:`~jointid.signal.harmonics.StateSignals` (one per excitation frequency)."""
-        sigs = list(signals_list)
-        if not sigs:
-            raise IdentificationError("the pooled gain regression needs at least one record")
-        if self.weighting not in ("noise", "none"):
-            raise IdentificationError(f"weighting must be 'noise' or 'none', got {self.weighting!r}")
+        sigs = pooled_inputs(signals_list, self.weighting, "pooled gain regression")
         lib = library(self.terms)
         if "q" not in lib.names:
             raise IdentificationError(f"the term library {lib.names} must contain the linear stiffness term 'q'")
-        for s in sigs:
-            if not isinstance(s, StateSignals):
-                raise IdentificationError(f"expected StateSignals records, got {type(s).__name__}")
         warn = []
         if len(sigs) == 1:
             warn.append(f"{context}one record only: the inertia (1/gain) and the linear stiffness are separable "
