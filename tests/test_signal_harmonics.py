@@ -134,3 +134,17 @@ def test_state_reconstruction_invariant_to_time_shift_and_units(shift, unit):
     q1, v1, _ = s1.states()
     q2, v2, _ = s2.states()
     assert np.allclose(q2, unit * q1, atol=1e-8 * unit * s1.q_max())
+
+
+def test_harmonics_limited_by_nyquist_are_reduced_with_a_warning():
+    from jointid.errors import JointidWarning
+
+    f = 10.0
+    fs = 2 * 3.5 * f  # harmonics 1..3 below Nyquist (35 Hz)
+    t = np.arange(700) / fs
+    x = np.sin(2 * np.pi * f * t)
+    with pytest.warns(JointidWarning, match="fitting 3 harmonics instead of 5"):
+        s = steady_state_signals(t, x, x, frequency_hz=f, n_harmonics=5)
+    assert s.acceleration.n_harmonics == 3
+    with pytest.raises(RecordError, match="at least 3"):
+        steady_state_signals(np.arange(300) / 45.0, x[:300], x[:300], frequency_hz=f, n_harmonics=5)

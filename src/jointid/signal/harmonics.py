@@ -17,6 +17,7 @@ times lose no precision.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,7 +25,7 @@ from scipy import linalg
 
 from .._blas import single_threaded
 from ..conventions import harmonic_index, n_coefficients
-from ..errors import RecordError
+from ..errors import JointidWarning, RecordError
 
 __all__ = [
     "HarmonicSeries",
@@ -39,6 +40,8 @@ __all__ = [
 
 #: Minimum number of excitation periods in a record.
 MIN_PERIODS = 2.0
+#: Fewest harmonics a steady-state record must resolve (the cubic term shows at the third).
+MIN_HARMONICS = 3
 #: Harmonics of the force fitted together with its fundamental when estimating the frequency.
 FORCE_HARMONICS = 5
 #: Fraction of the force variance a sinusoid must explain to count as a single-frequency excitation.
@@ -454,7 +457,10 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
     frequency_hz : float, optional
         Excitation frequency; estimated from the force when ``None``.
     n_harmonics : int
-        Harmonics fitted to the acceleration (the seed uses 4).
+        Harmonics fitted to the acceleration (the seed uses 4).  When the sampling rate
+        does not allow so many, the harmonics below Nyquist are fitted and a
+        :class:`~jointid.errors.JointidWarning` says so (fewer than ``MIN_HARMONICS`` is
+        an error).
     channels : tuple of str
         Column names used in error messages.
 
@@ -462,7 +468,8 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
     ------
     RecordError
         Non-finite values, different lengths, bad time base, zero force, no excitation
-        frequency found, fewer than two periods, or harmonics above Nyquist.
+        frequency found, fewer than two periods, or fewer than ``MIN_HARMONICS``
+        harmonics below Nyquist.
     """
     tname, fname, aname = channels
     t = check_signal(t, tname)
@@ -486,11 +493,20 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
             f"at least {MIN_PERIODS:g} are needed"
         )
     omega = 2 * np.pi * frequency_hz
-    f_top = n_harmonics * frequency_hz
-    if f_top >= 0.5 / dt:
-        raise RecordError(
-            f"channel {aname!r}: harmonic {n_harmonics} of {frequency_hz:.6g} Hz is at {f_top:.6g} Hz, "
-            f"not below the Nyquist frequency {0.5 / dt:.6g} Hz; sample faster or fit fewer harmonics"
+    n_harmonics = int(n_harmonics)
+    below = int(np.ceil(0.5 / (dt * frequency_hz)) - 1)  # harmonics strictly below Nyquist
+    if n_harmonics > below:
+        if below < MIN_HARMONICS:
+            raise RecordError(
+                f"channel {aname!r}: only {max(below, 0)} harmonic(s) of {frequency_hz:.6g} Hz lie below the "
+                f"Nyquist frequency {0.5 / dt:.6g} Hz; at least {MIN_HARMONICS} are needed (sample faster)"
+            )
+        warnings.warn(
+            f"channel {aname!r}: fitting {below} harmonics instead of {n_harmonics}: harmonic {below + 1} of "
+            f"{frequency_hz:.6g} Hz is not below the Nyquist frequency {0.5 / dt:.6g} Hz",
+            JointidWarning,
+            stacklevel=2,
         )
+        n_harmonics = below
     series, resid = _streaming_fit(t - t[0], accel, omega, n_harmonics, float(t[0]), aname)
     return StateSignals(t, force, accel, series, frequency_hz, given, resid)
