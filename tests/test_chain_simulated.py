@@ -170,12 +170,8 @@ def test_unknown_force_gain_gives_the_calibrated_result(tmp_path):
 def test_shipped_example_config_runs(tmp_path):
     from pathlib import Path
 
-    cfg = Path(__file__).resolve().parents[1] / "examples" / "noisy_softening.toml"
-    assert main(["simulate", str(cfg), "--out", str(tmp_path / "c"), "--quiet"]) == 0
-    assert len(load_campaign_records(tmp_path / "c")) == 123
-
-
-def load_campaign_records(folder):
     from jointid.io.campaign import load_campaign
 
-    return load_campaign(folder).records
+    cfg = Path(__file__).resolve().parents[1] / "examples" / "noisy_softening.toml"
+    assert main(["simulate", str(cfg), "--out", str(tmp_path / "c"), "--quiet"]) == 0
+    assert len(load_campaign(tmp_path / "c").records) == 123
