@@ -121,11 +121,6 @@ def _basis(tau, omega, n_harmonics):
     return out
 
 
-def _gram_lstsq(A, x):
-    """Least squares by the normal equations, for nearly orthogonal (sinusoidal) columns."""
-    return linalg.solve(A.T @ A, A.T @ x, assume_a="pos")
-
-
 @dataclass(frozen=True)
 class HarmonicSeries:
     """A truncated Fourier series ``x(t) = a0 + sum a_k cos(k w (t-t0)) + b_k sin(k w (t-t0))``."""
@@ -284,50 +279,65 @@ def _streaming_fit(tau, x, omega, n_harmonics, t0, channel):
     return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(rss / tau.size))
 
 
-def _periodic_fit_gn(tau, x, omega, n_harmonics, iterations=8):
-    """Gauss-Newton refinement of the fundamental of a periodic signal.
+def _gn_pass(tau, x, omega, n_harmonics, coef_prev):
+    """One streamed pass of Gauss-Newton on the fundamental of a periodic signal.
 
     The model is a constant plus ``n_harmonics`` harmonics of ``omega``; fitting the
     harmonics together with the fundamental keeps a distorted force (a shaker's
-    harmonics) from biasing the frequency.  Returns ``(omega, explained fraction)``, the
-    fraction from the fit of the last iteration (one step earlier: the step is tiny).
+    harmonics) from biasing the frequency.  The linear coefficients are projected out
+    (variable projection) and the Jacobian uses the coefficients of the previous pass,
+    so every pass reads the record once, block by block.
+
+    Returns ``(step, coefficients, explained fraction)``.
     """
+    m = n_coefficients(n_harmonics)
     k = np.arange(1, n_harmonics + 1)
-    max_step = 0.5 * np.pi / tau[-1]
-    xx = max(float(np.sum((x - x.mean()) ** 2)), np.finfo(float).tiny)
-    fraction = 0.0
-    for _ in range(iterations):
-        A = _basis(tau, omega, n_harmonics)
-        coef = _gram_lstsq(A, x)
-        r = x - A @ coef
-        fraction = 1.0 - float(r @ r) / xx
-        # d/d omega of sum a_k cos(k w t) + b_k sin(k w t), with the linear parameters
-        # projected out (variable projection)
-        J = tau * (A[:, 2::2] @ (-k * coef[1::2]) + A[:, 1::2] @ (k * coef[2::2]))
-        Jp = J - A @ _gram_lstsq(A, J)
-        den = Jp @ Jp
-        if den <= 0:
-            break
-        step = float(np.clip((Jp @ r) / den, -max_step, max_step))
-        omega = omega + step
-        if abs(step) * tau[-1] < 1e-6:  # phase change over the record below 1e-6 rad
-            break
-    return float(omega), float(fraction)
+    G, b, GJ = np.zeros((m, m)), np.zeros(m), np.zeros(m)
+    JJ = Jx = xx = sx = 0.0
+    for sl in _blocks(tau.size):
+        A = _basis(tau[sl], omega, n_harmonics)
+        xs = x[sl]
+        G += A.T @ A
+        b += A.T @ xs
+        xx += float(xs @ xs)
+        sx += float(xs.sum())
+        if coef_prev is not None:
+            # d/d omega of sum a_k cos(k w t) + b_k sin(k w t)
+            J = tau[sl] * (A[:, 2::2] @ (-k * coef_prev[1::2]) + A[:, 1::2] @ (k * coef_prev[2::2]))
+            GJ += A.T @ J
+            JJ += float(J @ J)
+            Jx += float(J @ xs)
+    coef = linalg.solve(G, b, assume_a="pos")
+    var = max(xx - sx * sx / tau.size, np.finfo(float).tiny)
+    fraction = 1.0 - max(xx - float(b @ coef), 0.0) / var
+    if coef_prev is None:
+        return 0.0, coef, fraction
+    den = JJ - float(GJ @ linalg.solve(G, GJ, assume_a="pos"))  # |J projected out of span(A)|^2
+    step = (Jx - float(GJ @ coef)) / den if den > 0 else 0.0  # J . residual
+    return step, coef, fraction
 
 
 def _refine_progressively(tau, x, omega, n_harmonics, first=32768, growth=8):
     """Refine on a growing prefix of the record so that each stage starts well inside
     the convergence region of the next, longer one; Gauss-Newton converges
-    quadratically, so a longer stage needs one or two steps (about two passes in all)."""
+    quadratically, so a longer stage needs one or two passes.
+
+    Returns ``(omega, explained fraction)``.
+    """
     n = tau.size
     m = min(n, first)
-    iterations = 8
+    coef, passes = None, 10
     while True:
-        omega, fraction = _periodic_fit_gn(tau[:m], x[:m], omega, n_harmonics, iterations=iterations)
+        max_step = 0.5 * np.pi / tau[m - 1]
+        for _ in range(passes):
+            step, coef, fraction = _gn_pass(tau[:m], x[:m], omega, n_harmonics, coef)
+            omega += float(np.clip(step, -max_step, max_step))
+            if step != 0.0 and abs(step) * tau[m - 1] < 1e-6:
+                break  # phase change over the stage below 1e-6 rad
         if m == n:
-            return omega, fraction
+            return float(omega), float(fraction)
         m = min(n, m * growth)
-        iterations = 2
+        passes = 2
 
 
 @single_threaded
