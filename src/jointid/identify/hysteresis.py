@@ -3,7 +3,10 @@
 For one steady-state period of a record:
 
 * measured loop: ``Q(t) - q''(t) - omega1^2 q(t)``; "filtered" uses the harmonic fits of
-  both force and acceleration (the seed's filtered loops), "unfiltered" the raw samples;
+  both force and acceleration over one period (the seed's filtered loops); "unfiltered"
+  uses the raw samples with every harmonic kept, averaged synchronously over all the
+  periods of the record in phase bins (up to 256 a period) so that measurement noise
+  does not hide the loop;
 * identified loop: the identified terms other than ``q`` (``c q' - k3 q^3`` for the seed
   model) evaluated on the same ``q, q'``.
 """
@@ -57,7 +60,7 @@ class HysteresisLoop:
 
 
 def hysteresis_loop(signals: StateSignals, terms, coefficients, *, filtered=True) -> HysteresisLoop:
-    """Loop of one period (the first whole period of the record).
+    """Hysteresis loop of a record over one period.
 
     Parameters
     ----------
@@ -67,23 +70,34 @@ def hysteresis_loop(signals: StateSignals, terms, coefficients, *, filtered=True
     coefficients : array
         Identified coefficients, in the order of ``terms``.
     filtered : bool
-        Use harmonic fits of force and acceleration (True) or the raw samples (False).
+        Use harmonic fits of force and acceleration over one period (True), or the raw
+        samples averaged synchronously over all periods (False).
     """
     lib = library(terms)
     coefficients = np.asarray(coefficients, float)
     i_lin = lib.index("q")
-    T = 1.0 / signals.frequency_hz
-    t = signals.t
-    sel = t < t[0] + T
-    q_all, v_all, a_fit = signals.states()
-    q, v = q_all[sel], v_all[sel]
-    if filtered:
-        fseries, _ = fit_harmonics(t, signals.force, signals.omega, signals.acceleration.n_harmonics, channel="force")
-        restoring = fseries(t[sel]) - a_fit[sel]
-    else:
-        restoring = signals.force[sel] - signals.accel_measured[sel]
-    measured = restoring - coefficients[i_lin] * q
     others = np.array(coefficients)
     others[i_lin] = 0.0
-    identified = lib.restoring_force(q, v, others)
-    return HysteresisLoop(q, measured, identified, filtered, signals.frequency_hz)
+    t = signals.t
+    q_all, v_all, a_fit = signals.states()
+    if filtered:
+        sel = t < t[0] + 1.0 / signals.frequency_hz
+        q, v = q_all[sel], v_all[sel]
+        fseries, _ = fit_harmonics(t, signals.force, signals.omega, signals.acceleration.n_harmonics, channel="force")
+        measured = fseries(t[sel]) - a_fit[sel] - coefficients[i_lin] * q
+        identified = lib.restoring_force(q, v, others)
+        return HysteresisLoop(q, measured, identified, True, signals.frequency_hz)
+    # synchronous average in phase bins: identical averaging of measured and identified values
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    n_bins = int(min(256, max(8, np.floor(1.0 / (signals.frequency_hz * dt)))))
+    phase = np.mod((t - t[0]) * signals.frequency_hz, 1.0)
+    idx = np.minimum((phase * n_bins).astype(int), n_bins - 1)
+    count = np.bincount(idx, minlength=n_bins)
+    keep = count > 0
+
+    def average(x):
+        return (np.bincount(idx, x, n_bins)[keep]) / count[keep]
+
+    raw = signals.force - signals.accel_measured - coefficients[i_lin] * q_all
+    return HysteresisLoop(average(q_all), average(raw), average(lib.restoring_force(q_all, v_all, others)), False,
+                          signals.frequency_hz)
