@@ -146,5 +146,20 @@ def test_harmonics_limited_by_nyquist_are_reduced_with_a_warning():
     with pytest.warns(JointidWarning, match="fitting 3 harmonics instead of 5"):
         s = steady_state_signals(t, x, x, frequency_hz=f, n_harmonics=5)
     assert s.acceleration.n_harmonics == 3
+    t2 = np.arange(300) / 45.0  # harmonics 1..2 below Nyquist (22.5 Hz)
+    x2 = np.sin(2 * np.pi * f * t2)
     with pytest.raises(RecordError, match="at least 3"):
-        steady_state_signals(np.arange(300) / 45.0, x[:300], x[:300], frequency_hz=f, n_harmonics=5)
+        steady_state_signals(t2, x2, x2, frequency_hz=f, n_harmonics=5)
+
+
+def test_rounded_given_frequency_is_refined_on_the_force_with_a_warning():
+    from jointid.errors import JointidWarning
+
+    f = 26.4837
+    t = np.arange(40000) / 2000.0  # 20 s: a 0.0037 Hz error drifts 0.46 rad
+    x = np.sin(2 * np.pi * f * t + 0.3)
+    with pytest.warns(JointidWarning, match="differs from the force's"):
+        s = steady_state_signals(t, x, x, frequency_hz=26.48, n_harmonics=3)
+    assert s.frequency_hz == pytest.approx(f, rel=1e-10)
+    kept = steady_state_signals(t, x, x, frequency_hz=26.48, n_harmonics=3, refine_frequency=False)
+    assert kept.frequency_hz == 26.48

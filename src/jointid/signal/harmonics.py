@@ -326,25 +326,49 @@ def _refine_progressively(tau, x, omega, n_harmonics, first=32768, growth=8):
     """
     n = tau.size
     m = min(n, first)
-    coef, passes = None, 10
+    coef, passes, tol = None, 10, 1e-6
     while True:
         max_step = 0.5 * np.pi / tau[m - 1]
         for _ in range(passes):
             step, coef, fraction = _gn_pass(tau[:m], x[:m], omega, n_harmonics, coef)
             omega += float(np.clip(step, -max_step, max_step))
-            if step != 0.0 and abs(step) * tau[m - 1] < 1e-6:
-                break  # phase change over the stage below 1e-6 rad
+            if step != 0.0 and abs(step) * tau[m - 1] < tol:
+                break
         if m == n:
             return float(omega), float(fraction)
         m = min(n, m * growth)
-        passes = 2
+        # a longer stage starts from a converged shorter one: a step that moves the phase at
+        # its end by less than 1e-3 rad leaves an error of the order of its square
+        passes, tol = 2, 1e-3
+
+
+def _spectral_peak(x, dt, f_range, channel) -> float:
+    """Frequency of the largest peak of the (Hann, zero-padded) spectrum of a prefix of ``x``."""
+    m = min(x.size, 32768)  # the spectrum of a prefix is enough to start the refinement
+    nfft = 1 << int(np.ceil(np.log2(4 * m)))
+    spec = np.abs(np.fft.rfft(x[:m] * np.hanning(m), nfft))
+    freqs = np.fft.rfftfreq(nfft, dt)
+    spec[0] = 0.0
+    if f_range is not None:
+        spec[(freqs < f_range[0]) | (freqs > f_range[1])] = 0.0
+    k = int(np.argmax(spec))
+    delta = 0.0
+    if 0 < k < spec.size - 1:
+        y0, y1, y2 = np.log(spec[k - 1 : k + 2] + np.finfo(float).tiny)
+        den = y0 - 2 * y1 + y2
+        delta = 0.5 * (y0 - y2) / den if den != 0 else 0.0
+    f0 = (k + float(np.clip(delta, -0.5, 0.5))) / (nfft * dt)
+    if f0 <= 0:
+        raise RecordError(f"channel {channel!r}: no excitation frequency found (spectrum peak at 0 Hz)")
+    return f0
 
 
 @single_threaded
-def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
+def estimate_frequency(t, force, *, channel="force", f_range=None, start_hz=None) -> float:
     """Excitation frequency [Hz] of a single-frequency force record.
 
-    The largest peak of the zero-padded spectrum is refined by Gauss-Newton on a
+    The largest peak of the zero-padded spectrum (or ``start_hz`` when given, e.g. a
+    nominal frequency logged by the test controller) is refined by Gauss-Newton on a
     constant plus the fundamental and its first harmonics fitted to all samples
     (maximum likelihood for white noise; harmonics of a distorted force do not bias it).
 
@@ -361,23 +385,7 @@ def estimate_frequency(t, force, *, channel="force", f_range=None) -> float:
         raise RecordError(f"channel {channel!r}: the force is zero; no excitation frequency can be found")
     n = x.size
     dt = (t[-1] - t[0]) / (n - 1)
-    m = min(n, 32768)  # the spectrum of a prefix is enough to start the refinement
-    nfft = 1 << int(np.ceil(np.log2(4 * m)))
-    spec = np.abs(np.fft.rfft(x[:m] * np.hanning(m), nfft))
-    freqs = np.fft.rfftfreq(nfft, dt)
-    spec[0] = 0.0
-    if f_range is not None:
-        spec[(freqs < f_range[0]) | (freqs > f_range[1])] = 0.0
-    k = int(np.argmax(spec))
-    if 0 < k < spec.size - 1:
-        y0, y1, y2 = np.log(spec[k - 1 : k + 2] + np.finfo(float).tiny)
-        den = y0 - 2 * y1 + y2
-        delta = 0.5 * (y0 - y2) / den if den != 0 else 0.0
-    else:
-        delta = 0.0
-    f0 = (k + float(np.clip(delta, -0.5, 0.5))) / (nfft * dt)
-    if f0 <= 0:
-        raise RecordError(f"channel {channel!r}: no excitation frequency found (spectrum peak at 0 Hz)")
+    f0 = float(start_hz) if start_hz is not None else _spectral_peak(x, dt, f_range, channel)
     tau = t - t[0]
     n_harm = int(max(1, min(FORCE_HARMONICS, np.floor(0.45 / (f0 * dt)))))
     omega, fraction = _refine_progressively(tau, x, 2 * np.pi * f0, n_harm)
@@ -456,8 +464,33 @@ class StateSignals:
         return self.displacement.max_abs()
 
 
+#: Phase drift over a record [rad] above which a given frequency is reported as inaccurate.
+DRIFT_TOL = 0.01
+
+
+def _refine_given(t, force, f_given, channel) -> float:
+    """The force's own frequency near ``f_given``; warns when they differ noticeably."""
+    try:
+        f = estimate_frequency(t, force, channel=channel, start_hz=f_given)
+    except RecordError as exc:
+        warnings.warn(f"channel {channel!r}: the given frequency {f_given:.9g} Hz is used as it is; it could "
+                      f"not be refined on the force ({exc})", JointidWarning, stacklevel=3)
+        return f_given
+    drift = 2 * np.pi * abs(f - f_given) * (t[-1] - t[0])
+    if drift <= DRIFT_TOL:
+        return f_given  # the force confirms it
+    warnings.warn(
+        f"channel {channel!r}: the given frequency {f_given:.9g} Hz differs from the force's {f:.9g} Hz "
+        f"(phase drift {drift:.3g} rad over the record); the force's frequency is used",
+        JointidWarning,
+        stacklevel=3,
+    )
+    return f
+
+
 @single_threaded
-def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, channels=("time", "force", "accel")):
+def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, channels=("time", "force", "accel"),
+                         refine_frequency=True):
     """Validate a steady-state record and reduce it to :class:`StateSignals`.
 
     Parameters
@@ -473,6 +506,12 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
         an error).
     channels : tuple of str
         Column names used in error messages.
+    refine_frequency : bool
+        Check a given frequency on the force record (Gauss-Newton started from it).  A
+        logged frequency is often rounded (26.48 Hz), and over a long record the phase
+        drift of a 0.005 Hz error spoils the damping estimate.  When the given value
+        would drift by more than ``DRIFT_TOL`` (0.01 rad) over the record, the force's
+        frequency is used instead, with a warning; otherwise the given value is kept.
 
     Raises
     ------
@@ -489,13 +528,15 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
     if not np.any(force - force.mean()):
         raise RecordError(f"channel {fname!r}: the force is zero (or constant); the record carries no excitation")
     given = frequency_hz is not None
+    dt = (t[-1] - t[0]) / (t.size - 1)
     if given:
         frequency_hz = float(frequency_hz)
         if not np.isfinite(frequency_hz) or frequency_hz <= 0:
             raise RecordError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
+        if refine_frequency:
+            frequency_hz = _refine_given(t, force, frequency_hz, fname)
     else:
         frequency_hz = estimate_frequency(t, force, channel=fname)
-    dt = (t[-1] - t[0]) / (t.size - 1)
     periods = (t[-1] - t[0] + dt) * frequency_hz
     if periods < MIN_PERIODS:
         raise RecordError(
