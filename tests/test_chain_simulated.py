@@ -50,7 +50,7 @@ def _noisy(tmp_path, k3, seed, noise=0.01, periods=50.0, fs=2000.0, levels=(0.5,
         return identify_campaign(camp, n_harmonics=5)
 
 
-def _check_noisy(res, k3):
+def _check_noisy(res, k3, frequency_given=False):
     assert not res.failed
     for g in res.groups:
         assert _rel(g.pooled.omega1, EXACT["omega1"]) < 1e-4, g.summary()
@@ -60,8 +60,8 @@ def _check_noisy(res, k3):
     assert _rel(c0, EXACT["c0"]) < 0.03
     assert _rel(c1, EXACT["c1"]) < 0.03
     assert _rel(c2, EXACT["c2"]) < 0.10
-    for rec in res.records:  # the frequency was estimated from the force
-        assert not rec.summary()["frequency_given"]
+    for rec in res.records:  # the frequency was estimated from the force, or given
+        assert rec.summary()["frequency_given"] == frequency_given
 
 
 @pytest.mark.parametrize("k3, seed", [(5e6, 11), (-5e6, 12)], ids=["softening", "hardening"])
@@ -175,3 +175,22 @@ def test_shipped_example_config_runs(tmp_path):
     cfg = Path(__file__).resolve().parents[1] / "examples" / "noisy_softening.toml"
     assert main(["simulate", str(cfg), "--out", str(tmp_path / "c"), "--quiet"]) == 0
     assert len(load_campaign(tmp_path / "c").records) == 123
+
+
+def test_rounded_manifest_frequencies_are_corrected_from_the_force(tmp_path):
+    """A manifest logging frequencies to 0.01 Hz (as test controllers do) still gives the right laws."""
+    import re
+
+    cfg = paper_config(n_frequencies=41, noise=0.01, seed=8, periods=50, fs=2000.0, write_frequency=True)
+    cfg["model"][0]["coefficients"]["k3"] = 5e6
+    cfg["excitation"]["force_levels"] = [0.5, 1.0, 2.0]
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "c")
+    manifest = camp / "campaign.toml"
+    text = re.sub(r"frequency_hz = ([0-9.e+-]+)", lambda m: f"frequency_hz = {float(m.group(1)):.2f}",
+                  manifest.read_text())
+    manifest.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify_campaign(camp, n_harmonics=5)
+    assert any("differs from the force's" in w for r in res.records for w in r.warnings)
+    _check_noisy(res, 5e6, frequency_given=True)

@@ -47,6 +47,9 @@ class IdentifySettings:
         (divided by the fitted inertia coefficient), the single-record ``omega1`` is the
         record's own with the shared inertia and cubic held, and single-record ``k3`` is
         not reported (inertia and stiffness separate only across frequencies).
+    refine_frequency : bool
+        Check a manifest's ``frequency_hz`` on the force and replace a value that would
+        drift the phase by more than 0.01 rad over the record (a rounded log), with a warning.
     progress : bool
         Show a progress bar.
     """
@@ -56,6 +59,7 @@ class IdentifySettings:
     damping_order: int = 2
     weighting: str = "noise"
     force_gain: str = "known"
+    refine_frequency: bool = True
     progress: bool = False
 
     def __post_init__(self):
@@ -69,6 +73,7 @@ class IdentifySettings:
             "damping_order": self.damping_order,
             "weighting": self.weighting,
             "force_gain": self.force_gain,
+            "refine_frequency": self.refine_frequency,
         }
 
 
@@ -246,7 +251,8 @@ def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) 
                 Q, qdd, resid = to_modal.to_modal(data.channels)
                 names = ("time", "force (modal)", "accel (modal)")
             signals = steady_state_signals(
-                data.time, Q, qdd, frequency_hz=spec.frequency_hz, n_harmonics=settings.n_harmonics, channels=names
+                data.time, Q, qdd, frequency_hz=spec.frequency_hz, n_harmonics=settings.n_harmonics, channels=names,
+                refine_frequency=settings.refine_frequency,
             )
             fit = ForceStateMapping(settings.terms).fit(signals, context=_context(spec)).result_
         except JointidError as exc:
