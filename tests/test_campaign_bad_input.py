@@ -7,7 +7,7 @@ import pytest
 
 from conftest import consistent_record
 from jointid.cli import main
-from jointid.errors import JointidWarning, ManifestError, RecordFileNotFoundError
+from jointid.errors import IllConditionedWarning, JointidWarning, ManifestError, RecordFileNotFoundError
 from jointid.io.campaign import load_campaign, write_campaign, write_csv_record
 from jointid.report.output import write_results
 from jointid.workflow import identify_campaign
@@ -135,7 +135,7 @@ def test_unresolved_k3_is_warned_with_condition_number(tmp_path):
     a = a + 0.01 * a.std() * rng.standard_normal(a.size)
     write_csv_record(tmp_path / "r.csv", t, {"force": Q, "accel": a})
     write_campaign(tmp_path, "tiny", [{"file": "r.csv", "force_level": 1, "preload": 1}])
-    with pytest.warns(JointidWarning, match=r"k3 not resolved.*condition number"):
+    with pytest.warns(IllConditionedWarning, match=r"k3 not resolved.*condition number"):
         res = identify_campaign(tmp_path)
     assert res.records[0].ok
     assert any("condition number" in w for w in res.records[0].summary()["warnings"])

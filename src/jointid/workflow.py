@@ -93,6 +93,7 @@ class RecordOutcome:
     modal_residual: float | None = None
     warnings: tuple = ()
     omega1_own: float | None = None  # with an unknown force gain: the record's omega1, shared inertia held
+    warning_types: tuple = field(default=(), repr=False, compare=False)  # category of each warning
 
     @property
     def ok(self) -> bool:
@@ -259,13 +260,15 @@ def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) 
             msg = str(exc)
             if not msg.startswith(str(spec.file)):
                 msg = _context(spec) + msg
-            return RecordOutcome(spec, "failed", msg, warnings=tuple(str(w.message) for w in caught))
+            return RecordOutcome(spec, "failed", msg, **_caught(caught))
         except Exception as exc:  # noqa: BLE001 - one record must never lose the campaign
             msg = f"{_context(spec)}unexpected {type(exc).__name__}: {exc}"
-            return RecordOutcome(spec, "failed", msg, warnings=tuple(str(w.message) for w in caught))
-    return RecordOutcome(
-        spec, "ok", None, signals, fit, modal_residual=resid, warnings=tuple(str(w.message) for w in caught)
-    )
+            return RecordOutcome(spec, "failed", msg, **_caught(caught))
+    return RecordOutcome(spec, "ok", None, signals, fit, modal_residual=resid, **_caught(caught))
+
+
+def _caught(caught) -> dict:
+    return {"warnings": tuple(str(w.message) for w in caught), "warning_types": tuple(w.category for w in caught)}
 
 
 def _gain_free(gain, terms) -> PooledFit:
@@ -326,8 +329,8 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         iterator = tqdm(specs, desc="records", unit="rec")
     outcomes = [process_record(s, settings, to_modal) for s in iterator]
     for o in outcomes:
-        for w in o.warnings:
-            warnings.warn(w, JointidWarning, stacklevel=2)
+        for w, category in zip(o.warnings, o.warning_types):
+            warnings.warn(w, category, stacklevel=2)
     failed = [o for o in outcomes if not o.ok]
     if failed:
         listing = "\n  ".join(o.error for o in failed[:10]) + ("\n  ..." if len(failed) > 10 else "")
