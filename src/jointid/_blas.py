@@ -25,7 +25,11 @@ def _controller() -> ThreadpoolController:
 
 
 def single_threaded(func):
-    """Decorator: run ``func`` with BLAS limited to one thread."""
+    """Decorator: run ``func`` with BLAS limited to one thread.
+
+    The wrapper adds one frame: a warning raised in ``func`` for its caller needs
+    ``stacklevel=3`` (two more for each helper level below it).
+    """
 
     @wraps(func)
     def wrapper(*args, **kwargs):

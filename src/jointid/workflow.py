@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._blas import single_threaded
-from .errors import IdentificationError, JointidError, JointidWarning, where
+from .errors import IdentificationError, IllConditionedWarning, JointidError, JointidWarning, where
 from .identify.fsm import ForceStateMapping, PooledFit, PooledForceStateMapping, RecordFit, band_average
 from .identify.gain import PooledGainForceStateMapping
 from .identify.laws import PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
@@ -330,11 +330,11 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     outcomes = [process_record(s, settings, to_modal) for s in iterator]
     for o in outcomes:
         for w, category in zip(o.warnings, o.warning_types):
-            warnings.warn(w, category, stacklevel=2)
+            warnings.warn(w, category, stacklevel=3)  # 3: past the single-threaded wrapper
     failed = [o for o in outcomes if not o.ok]
     if failed:
         listing = "\n  ".join(o.error for o in failed[:10]) + ("\n  ..." if len(failed) > 10 else "")
-        warnings.warn(f"{len(failed)} of {len(outcomes)} records failed:\n  {listing}", JointidWarning, stacklevel=2)
+        warnings.warn(f"{len(failed)} of {len(outcomes)} records failed:\n  {listing}", JointidWarning, stacklevel=3)
 
     # groups: pooled regression and band average
     keys = sorted({o.spec.group for o in outcomes}, key=lambda k: (_group_key(k[0]), _group_key(k[1])))
@@ -356,8 +356,8 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                     gain = PooledGainForceStateMapping(settings.terms, weighting=settings.weighting).fit(
                         sigs, context=ctx).result_
                     pooled = _gain_free(gain, settings.terms)
-            for w in pooled.warnings:
-                warnings.warn(w, JointidWarning, stacklevel=2)
+            for w in pooled.warnings:  # resolution and conditioning of the pooled regression
+                warnings.warn(w, IllConditionedWarning, stacklevel=3)
             if gain is None:
                 band = band_average([outcomes[i].fit for i in members])
             else:

@@ -585,7 +585,7 @@ class BroadbandForceStateMapping:
             warn.append(f"{context}the fitted inertia coefficient is not positive (m = {mass:.4g}); the force gain "
                         f"and the derived frequencies are meaningless")
         for w in warn:
-            warnings.warn(w, IllConditionedWarning, stacklevel=2)
+            warnings.warn(w, IllConditionedWarning, stacklevel=3)
         A_all, b_all = rows
         force_rms = float(np.sqrt(np.mean(b_all**2))) if b_all.size else float("nan")
         self.library_ = lib

@@ -231,7 +231,7 @@ class ForceStateMapping:
         res = lstsq_from_reduced(R[:, :p], R[:, p], n, R[:, p + 1])
         warn = _resolution_warnings(list(lib), res, self.cond_limit, context)
         for w in warn:
-            warnings.warn(w, IllConditionedWarning, stacklevel=2)
+            warnings.warn(w, IllConditionedWarning, stacklevel=3)
         self.library_ = lib
         self.lstsq_ = res
         self.coef_ = res.coefficients
@@ -439,7 +439,7 @@ class PooledForceStateMapping:
         )
         warn = _resolution_warnings([lib[i] for i in shared_idx], shared_part, self.cond_limit, context)
         for w in warn:
-            warnings.warn(w, IllConditionedWarning, stacklevel=2)
+            warnings.warn(w, IllConditionedWarning, stacklevel=3)
         self.library_ = lib
         self.lstsq_ = res
         self.result_ = PooledFit(

@@ -430,7 +430,7 @@ class PooledGainForceStateMapping:
             ratio = th[0] / shared[0]
             w1.append(float(np.sqrt(ratio)) if ratio > 0 else float("nan"))
         for w_ in warn:
-            warnings.warn(w_, IllConditionedWarning, stacklevel=2)
+            warnings.warn(w_, IllConditionedWarning, stacklevel=3)
         names_shared = ("m",) + tuple(lib[i].coefficient for i in shared_lib)
         self.library_ = lib
         self.lstsq_ = res

@@ -474,7 +474,7 @@ def _refine_given(t, force, f_given, channel) -> float:
         f = estimate_frequency(t, force, channel=channel, start_hz=f_given)
     except RecordError as exc:
         warnings.warn(f"channel {channel!r}: the given frequency {f_given:.9g} Hz is used as it is; it could "
-                      f"not be refined on the force ({exc})", JointidWarning, stacklevel=3)
+                      f"not be refined on the force ({exc})", JointidWarning, stacklevel=4)
         return f_given
     drift = 2 * np.pi * abs(f - f_given) * (t[-1] - t[0])
     if drift <= DRIFT_TOL:
@@ -483,7 +483,7 @@ def _refine_given(t, force, f_given, channel) -> float:
         f"channel {channel!r}: the given frequency {f_given:.9g} Hz differs from the force's {f:.9g} Hz "
         f"(phase drift {drift:.3g} rad over the record); the force's frequency is used",
         JointidWarning,
-        stacklevel=3,
+        stacklevel=4,
     )
     return f
 
@@ -556,7 +556,7 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
             f"channel {aname!r}: fitting {below} harmonics instead of {n_harmonics}: harmonic {below + 1} of "
             f"{frequency_hz:.6g} Hz is not below the Nyquist frequency {0.5 / dt:.6g} Hz",
             JointidWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
         n_harmonics = below
     series, resid = _streaming_fit(t - t[0], accel, omega, n_harmonics, float(t[0]), aname)

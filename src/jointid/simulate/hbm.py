@@ -1351,7 +1351,7 @@ def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
                 f"continuation stopped after {max_steps} steps at omega={pts[-1][0]:.6g} rad/s "
                 f"before reaching the end of the range ({w0:.6g}, {w1:.6g}); returning the partial curve",
                 ConvergenceWarning,
-                stacklevel=3,
+                stacklevel=4,
             )
             break
         out = arc.correct(y + ds * t, t)
