@@ -614,9 +614,9 @@ def main(argv=None) -> int:
 
     Returns 0 on success, 2 when the shared data folder is missing.
     """
-    p = argparse.ArgumentParser(prog="python -m jointid.examples_data",
+    p = argparse.ArgumentParser(prog="jointid public-data",
                                 description="Identification examples on the public data sets in ../shared/data.",
-                                epilog="example: python -m jointid.examples_data --out public-data-out")
+                                epilog="example: jointid public-data --out public-data-out")
     p.add_argument("--out", type=Path, default=None, help="folder for the figures (PNG) and results.json")
     p.add_argument("--only", choices=("silverbox", "benchmark", "unesp", "f16"), action="append",
                    help="run only these examples (repeatable)")
