@@ -1,4 +1,11 @@
-"""jointid: identification of nonlinear bolted-joint parameters by force-state mapping."""
+"""jointid: identification of nonlinear bolted-joint parameters by force-state mapping.
+
+The data flow is the package layout: ``io`` (records, campaigns) -> ``signal`` (state
+signals) -> ``modal`` (structure, modal coordinates) -> ``identify`` (force-state
+mapping, laws) -> ``simulate`` (harmonic balance, time integration) -> ``rig`` (virtual
+test rig) -> ``report`` (tables, figures, HTML); :mod:`jointid.workflow` runs a campaign
+through it and :mod:`jointid.cli` is the command line.
+"""
 
 from __future__ import annotations
 

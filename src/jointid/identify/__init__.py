@@ -1,1 +1,19 @@
-"""jointid.identify."""
+"""jointid.identify: force-state mapping and the laws built on it.
+
+* :mod:`jointid.identify.terms` -- named restoring-force terms and libraries;
+* :mod:`jointid.identify.fsm` -- per-record and pooled force-state mapping (seed Eq 21-23);
+* :mod:`jointid.identify.gain` -- the pooled regression with an unknown force gain;
+* :mod:`jointid.identify.broadband` -- force-state mapping of broadband records;
+* :mod:`jointid.identify.laws` -- damping law, energy per cycle, power law (Eq 25-26);
+* :mod:`jointid.identify.hysteresis` -- measured and identified loops (Figs 17-19);
+* :mod:`jointid.identify.regression` -- the scaled, blockwise least squares underneath.
+"""
+
+from .fsm import ForceStateMapping, PooledForceStateMapping, band_average
+from .gain import PooledGainForceStateMapping
+from .hysteresis import hysteresis_loop
+from .laws import fit_damping_law, fit_power_law
+from .terms import Term, TermLibrary, library, term
+
+__all__ = ["ForceStateMapping", "PooledForceStateMapping", "PooledGainForceStateMapping", "band_average",
+           "hysteresis_loop", "fit_damping_law", "fit_power_law", "Term", "TermLibrary", "library", "term"]

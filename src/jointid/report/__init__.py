@@ -1,1 +1,1 @@
-"""jointid.report."""
+"""jointid.report: tables, figures and self-contained HTML; all plotting lives here."""

@@ -1,1 +1,12 @@
-"""jointid.signal."""
+"""jointid.signal: from sampled records to state signals.
+
+* :mod:`jointid.signal.harmonics` -- single-frequency steady states: excitation
+  frequency, harmonic fit, analytic integration (seed Eq 16-18);
+* :mod:`jointid.signal.broadband` -- multisine and random records: period averaging,
+  noise lines, frequency-domain integration;
+* :mod:`jointid.signal.frf` -- H1 and coherence, modal fit, linear modal responses.
+"""
+
+from .harmonics import HarmonicSeries, StateSignals, estimate_frequency, fit_harmonics, steady_state_signals
+
+__all__ = ["HarmonicSeries", "StateSignals", "estimate_frequency", "fit_harmonics", "steady_state_signals"]
