@@ -112,7 +112,7 @@ def test_each_bad_record_fails_alone_with_a_clear_message(bad_campaign, tmp_path
 
 
 def test_cli_exit_code_reports_partial_failure(bad_campaign, tmp_path, capsys):
-    code = main(["identify", str(bad_campaign), "--out", str(tmp_path / "o"), "--no-figures", "--quiet"])
+    code = main(["identify", str(bad_campaign), "--out", str(tmp_path / "o"), "--no-figures", "--quiet", "--jobs", "2"])
     assert code == 1
     assert (tmp_path / "o" / "results.json").is_file()
 

@@ -85,12 +85,13 @@ def test_noisy_campaigns_unseen(tmp_path, seed):
 
 
 def test_same_input_and_seed_give_same_results(tmp_path):
+    """Two simulations with one seed, identified in this process and by two workers: identical results."""
     outs = []
-    for i in range(2):
+    for i, jobs in enumerate(("1", "2")):
         cfg = paper_config(n_frequencies=9, noise=0.01, seed=5, write_frequency=False, periods=10)
         camp = simulate_campaign(load_simulation_config(cfg), tmp_path / f"c{i}")
         out = tmp_path / f"o{i}"
-        assert main(["identify", str(camp), "--out", str(out), "--no-figures", "--quiet"]) == 0
+        assert main(["identify", str(camp), "--out", str(out), "--no-figures", "--quiet", "--jobs", jobs]) == 0
         outs.append(json.loads((out / "results.json").read_text()))
     for o in outs:
         o["campaign"].pop("folder")

@@ -34,6 +34,8 @@ def _add_identify_options(p):
     p.add_argument("--force-gain", choices=("known", "unknown"), default="known",
                    help="'unknown' when the force column is e.g. a shaker voltage: the gain is identified "
                         "with the inertia term and omega1, k3, c are gain-free (default: %(default)s)")
+    p.add_argument("--jobs", type=int, default=1,
+                   help="worker processes for the records (0: one per core; default: %(default)s)")
     p.add_argument("--trust-frequency", action="store_true",
                    help="use the manifest's frequency_hz as it is (by default it is checked on the force)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -158,7 +160,7 @@ def _identify(args) -> int:
 
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
-        weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency,
+        weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency, jobs=args.jobs,
         progress=not args.quiet,
     )
     write_results(result, args.out, figures=not args.no_figures)

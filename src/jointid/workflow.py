@@ -9,6 +9,7 @@ records still finish.
 from __future__ import annotations
 
 import html
+import os
 import warnings
 from dataclasses import dataclass, field, replace
 
@@ -50,6 +51,9 @@ class IdentifySettings:
     refine_frequency : bool
         Check a manifest's ``frequency_hz`` on the force and replace a value that would
         drift the phase by more than 0.01 rad over the record (a rounded log), with a warning.
+    jobs : int
+        Worker processes for the records (``1``: in this process; ``0``: one per core).
+        Results do not depend on it.
     progress : bool
         Show a progress bar.
     """
@@ -60,6 +64,7 @@ class IdentifySettings:
     weighting: str = "noise"
     force_gain: str = "known"
     refine_frequency: bool = True
+    jobs: int = 1
     progress: bool = False
 
     def __post_init__(self):
@@ -74,7 +79,7 @@ class IdentifySettings:
             "weighting": self.weighting,
             "force_gain": self.force_gain,
             "refine_frequency": self.refine_frequency,
-        }
+        }  # jobs and progress do not change results
 
 
 @dataclass(frozen=True)
@@ -271,6 +276,31 @@ def _caught(caught) -> dict:
     return {"warnings": tuple(str(w.message) for w in caught), "warning_types": tuple(w.category for w in caught)}
 
 
+def _process_all(specs, settings, to_modal) -> list:
+    """:func:`process_record` over all records, in worker processes when ``settings.jobs != 1``."""
+    from tqdm.auto import tqdm
+
+    jobs = settings.jobs if settings.jobs > 0 else (os.cpu_count() or 1)
+    bar = tqdm(total=len(specs), desc="records", unit="rec", disable=not settings.progress)
+    if jobs == 1 or len(specs) < 2:
+        outcomes = []
+        for spec in specs:
+            outcomes.append(process_record(spec, settings, to_modal))
+            bar.update()
+        bar.close()
+        return outcomes
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    outcomes = [None] * len(specs)
+    with ProcessPoolExecutor(max_workers=min(jobs, len(specs))) as pool:
+        futures = {pool.submit(process_record, spec, settings, to_modal): i for i, spec in enumerate(specs)}
+        for fut in as_completed(futures):
+            outcomes[futures[fut]] = fut.result()
+            bar.update()
+    bar.close()
+    return outcomes
+
+
 def _gain_free(gain, terms) -> PooledFit:
     """A :class:`PooledFit` of the gain-free coefficients (``theta / m``) of a gain fit."""
     d = gain.derived()
@@ -321,13 +351,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
 
         to_modal = Structure.from_mapping(campaign.structure, source=str(campaign.root / "campaign.toml"))
 
-    specs = campaign.records
-    iterator = specs
-    if settings.progress:
-        from tqdm.auto import tqdm
-
-        iterator = tqdm(specs, desc="records", unit="rec")
-    outcomes = [process_record(s, settings, to_modal) for s in iterator]
+    outcomes = _process_all(campaign.records, settings, to_modal)
     for o in outcomes:
         for w, category in zip(o.warnings, o.warning_types):
             warnings.warn(w, category, stacklevel=3)  # 3: past the single-threaded wrapper
