@@ -102,20 +102,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _modal(args) -> int:
-    import tomllib
-
     import numpy as np
 
-    from .errors import ManifestError, RecordFileNotFoundError
+    from .io.campaign import read_toml
     from .io.results import atomic_savefig, write_json
     from .modal.structure import Structure
 
-    if not args.structure.is_file():
-        raise RecordFileNotFoundError(f"{args.structure}: structure file not found")
-    try:
-        data = tomllib.loads(args.structure.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ManifestError(f"{args.structure}: not valid TOML ({exc})") from exc
+    data = read_toml(args.structure, "structure file")
     structure = Structure.from_mapping(data, source=str(args.structure))
     print(structure.report())
     summary = {"structure": structure.summary()}

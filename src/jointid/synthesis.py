@@ -33,15 +33,14 @@ exactly) and sampled analytically, so a record is the exact periodic response pl
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .errors import ManifestError, RecordFileNotFoundError
+from .errors import ManifestError
 from .identify.terms import library
-from .io.campaign import write_campaign, write_csv_record
+from .io.campaign import read_toml, write_campaign, write_csv_record
 from .simulate.model import SingleModeModel
 
 __all__ = ["SimulationConfig", "load_simulation_config", "simulate_campaign", "model_from_mapping"]
@@ -94,14 +93,8 @@ def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
     if isinstance(path_or_dict, dict):
         d, source = path_or_dict, source or "config"
     else:
-        p = Path(path_or_dict)
-        source = str(p)
-        if not p.is_file():
-            raise RecordFileNotFoundError(f"{p}: simulation configuration not found")
-        try:
-            d = tomllib.loads(p.read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as exc:
-            raise ManifestError(f"{p}: not valid TOML ({exc})") from exc
+        source = str(path_or_dict)
+        d = read_toml(path_or_dict, "simulation configuration")
     models = d.get("model")
     if models is None:
         raise ManifestError(f"{source}: a [model] table is required")

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import ManifestError, RecordError, RecordFileNotFoundError, where
 from .channels import validate_channels
 
-__all__ = ["RecordSpec", "Campaign", "load_campaign", "read_record", "RecordData", "write_campaign", "write_csv_record"]
+__all__ = ["RecordSpec", "Campaign", "read_toml", "load_campaign", "read_record", "RecordData", "write_campaign", "write_csv_record"]
 
 COORDINATES = ("modal", "physical")
 #: Allowed deviation of a time step from the mean step, as a fraction of it.
@@ -90,6 +90,26 @@ def _number(value, key, ctx):
     return float(value)
 
 
+def read_toml(path, what="file") -> dict:
+    """Parse a TOML file; a missing file or invalid TOML is an error naming the file.
+
+    Raises
+    ------
+    RecordFileNotFoundError
+        When ``path`` is not a file (``what`` says which file was expected).
+    ManifestError
+        When the file is not valid TOML.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise RecordFileNotFoundError(f"{path}: {what} not found")
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ManifestError(f"{path}: not valid TOML ({exc})") from exc
+
+
 def load_campaign(folder) -> Campaign:
     """Read and validate ``folder/campaign.toml``.
 
@@ -102,13 +122,7 @@ def load_campaign(folder) -> Campaign:
     """
     root = Path(folder)
     manifest_path = root / "campaign.toml"
-    if not manifest_path.is_file():
-        raise RecordFileNotFoundError(f"{manifest_path}: campaign manifest not found")
-    try:
-        with open(manifest_path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ManifestError(f"{manifest_path}: not valid TOML ({exc})") from exc
+    data = read_toml(manifest_path, "campaign manifest")
     head = data.get("campaign", {})
     if not isinstance(head, dict):
         raise ManifestError(f"{manifest_path}: [campaign] must be a table")

@@ -31,14 +31,13 @@ cannot be read is reported and left out, the others are written.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import JointidError, ManifestError, RecordError, RecordFileNotFoundError
-from .campaign import write_campaign, write_csv_record
+from .campaign import read_toml, write_campaign, write_csv_record
 from .channels import Channels, merge_channels
 
 __all__ = ["ImportResult", "import_campaign", "read_source"]
@@ -117,12 +116,7 @@ def _sources(entry, i, defaults, ctx):
 def import_campaign(description, out_dir) -> ImportResult:
     """Write the campaign described by ``description`` (a TOML file) into ``out_dir``."""
     desc = Path(description)
-    if not desc.is_file():
-        raise RecordFileNotFoundError(f"{desc}: import description not found")
-    try:
-        d = tomllib.loads(desc.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ManifestError(f"{desc}: not valid TOML ({exc})") from exc
+    d = read_toml(desc, "import description")
     ctx = f"{desc} "
     head = d.get("campaign", {})
     imp = d.get("import", {})
