@@ -265,6 +265,19 @@ def pooled_inputs(signals_list, weighting, what) -> list:
     return sigs
 
 
+def split_terms(lib, per_record=None):
+    """Indices of the shared and of the per-record terms of a pooled regression.
+
+    ``per_record`` names the per-record terms (or coefficients); by default the
+    damping-kind terms are per record and the stiffness terms shared.
+    """
+    if per_record is None:
+        own = [i for i, t in enumerate(lib) if t.kind == "damping"]
+    else:
+        own = [lib.index(n) for n in per_record]
+    return [i for i in range(len(lib)) if i not in own], own
+
+
 def band_average(fits) -> dict:
     """Average of single-record coefficients over a band of records (seed Tables 1, 3).
 
@@ -405,8 +418,10 @@ class PooledForceStateMapping:
     Attributes
     ----------
     result_ : PooledFit
-    record_fits_ : list of RecordFit
-        The single-record fits computed on the way.
+    coef_ : array
+        The shared coefficients.
+    lstsq_ : LstsqResult
+        The whole pooled least-squares solution (shared, then per-record coefficients).
     """
 
     def __init__(self, terms="q + -q^3 + q'", per_record=None, weighting="noise", cond_limit=COND_LIMIT, filtered=True):
@@ -422,17 +437,12 @@ class PooledForceStateMapping:
         lib = library(self.terms)
         for s in signals_list:
             _check_terms(lib, s.acceleration.n_harmonics)
-        if self.per_record is None:
-            own_idx = [i for i, t in enumerate(lib) if t.kind == "damping"]
-        else:
-            own_idx = [lib.index(n) for n in self.per_record]
-        shared_idx = [i for i in range(len(lib)) if i not in own_idx]
+        shared_idx, own_idx = split_terms(lib, self.per_record)
         ns, no, nr = len(shared_idx), len(own_idx), len(signals_list)
         nt = len(lib)
         # columns of each R: terms in library order, then y_fit, y_raw
         reduced = [_reduced(lib, s, self.filtered) for s in signals_list]
-        res, weights = pooled_lstsq(reduced, shared_idx, own_idx, nt, nt + 1,
-                                    self.weighting if self.weighting == "noise" else "none")
+        res, weights = pooled_lstsq(reduced, shared_idx, own_idx, nt, nt + 1, self.weighting)
         n_total = res.n_samples
         shared_part = LstsqResult(
             res.coefficients[:ns], res.stderr[:ns], res.covariance[:ns, :ns], res.condition_number, res.rss, n_total

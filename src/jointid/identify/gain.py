@@ -57,7 +57,7 @@ from ..signal.harmonics import (
     fit_harmonics,
 )
 from .broadband import delta_method
-from .fsm import COND_LIMIT, pooled_inputs
+from .fsm import COND_LIMIT, pooled_inputs, split_terms
 from .regression import pooled_lstsq, reduce_blocks
 from .terms import library
 
@@ -399,9 +399,7 @@ class PooledGainForceStateMapping:
         elif len({round(s.frequency_hz, 9) for s in sigs}) < 2:
             warn.append(f"{context}all records have the same excitation frequency: the inertia and the linear "
                         f"stiffness are not separable")
-        own_lib = [i for i, t in enumerate(lib) if t.kind == "damping"] if self.per_record is None else \
-            [lib.index(n) for n in self.per_record]
-        shared_lib = [i for i in range(len(lib)) if i not in own_lib]
+        shared_lib, own_lib = split_terms(lib, self.per_record)
         # columns of R: 0 = inertia, 1 + i = library term i, last = excitation
         shared_cols = [0] + [1 + i for i in shared_lib]
         own_cols = [1 + i for i in own_lib]
