@@ -35,7 +35,7 @@ def fundamental(rec, f_hz, name="accel_42"):
 
 
 def bench_demo():
-    from jointid.demo import run_demo
+    from jointid.app.demo import run_demo
 
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()

@@ -10,7 +10,7 @@ from jointid.cli import main
 from jointid.errors import IllConditionedWarning, JointidWarning, ManifestError, RecordFileNotFoundError
 from jointid.io.campaign import load_campaign, write_campaign, write_csv_record
 from jointid.report.output import write_results
-from jointid.workflow import identify_campaign
+from jointid.app.workflow import identify_campaign
 
 W = 30.0
 COEFS = [W**2, 4e6, 0.5]

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from jointid.cli import main
-from jointid.examples import PAPER, paper_config, run_paper_example
-from jointid.synthesis import load_simulation_config, simulate_campaign
-from jointid.workflow import identify_campaign
+from jointid.app.paper_example import PAPER, paper_config, run_paper_example
+from jointid.app.synthesis import load_simulation_config, simulate_campaign
+from jointid.app.workflow import identify_campaign
 
 EXACT = PAPER["exact"]
 

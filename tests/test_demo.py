@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jointid.demo import CHECK_LIMITS, run_demo
+from jointid.app.demo import CHECK_LIMITS, run_demo
 
 CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None)
 

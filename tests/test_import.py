@@ -10,7 +10,7 @@ from jointid.io.campaign import load_campaign, read_record
 from jointid.io.channels import Channels
 from jointid.io.importer import import_campaign
 from jointid.io.uff import write_uff
-from jointid.workflow import identify_campaign
+from jointid.app.workflow import identify_campaign
 
 
 def test_import_unesp_test_lab_sine_dwells_and_identify(shared_data, tmp_path):

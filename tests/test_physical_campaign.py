@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from jointid.cli import main
-from jointid.examples import paper_config
+from jointid.app.paper_example import paper_config
 from jointid.errors import StructureError
 from jointid.io.campaign import load_campaign, read_record, write_campaign, write_csv_record
 from jointid.modal.structure import Structure
-from jointid.synthesis import load_simulation_config, simulate_campaign
-from jointid.workflow import identify_campaign
+from jointid.app.synthesis import load_simulation_config, simulate_campaign
+from jointid.app.workflow import identify_campaign
 
 STRUCTURE = {"model": "seed-bolted-beam", "preload": 120, "force_column": "force",
              "sensors": {"accel_30": 0.30, "accel_42": 0.42}}

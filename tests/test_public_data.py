@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
-from jointid import examples_data as ex
+from jointid.app import public_data as ex
 from jointid.errors import RecordFileNotFoundError
 from jointid.io.datasets import shared_data_dir
 

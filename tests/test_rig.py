@@ -169,7 +169,7 @@ def test_updated_structure_gives_the_rig_mode_shape(small_campaign, rig540):
 
 
 def test_identify_campaign_reads_the_rig_campaign(small_campaign, rig540):
-    from jointid.workflow import identify_campaign
+    from jointid.app.workflow import identify_campaign
 
     write_manifest(small_campaign, structure_section(rig540, rig540.beam))
     with warnings.catch_warnings():

@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="write a simulated campaign from a TOML configuration",
                        epilog="example: jointid simulate config.toml --out camp")
-    p.add_argument("config", type=Path, help="simulation configuration (see jointid.synthesis)")
+    p.add_argument("config", type=Path, help="simulation configuration (see docs/formats.md)")
     p.add_argument("--out", type=Path, required=True, help="campaign folder to write")
     p.add_argument("--quiet", action="store_true")
 
@@ -149,7 +149,7 @@ def _modal(args) -> int:
 
 def _identify(args) -> int:
     from .report.output import write_results
-    from .workflow import identify_campaign
+    from .app.workflow import identify_campaign
 
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
@@ -164,7 +164,7 @@ def _identify(args) -> int:
 
 
 def _simulate(args) -> int:
-    from .synthesis import simulate_campaign
+    from .app.synthesis import simulate_campaign
 
     out = simulate_campaign(args.config, args.out, progress=not args.quiet)
     if not args.quiet:
@@ -173,7 +173,7 @@ def _simulate(args) -> int:
 
 
 def _demo(args) -> int:
-    from .demo import run_demo
+    from .app.demo import run_demo
 
     res = run_demo(args.out, progress=not args.quiet, seed=args.seed, figures=not args.no_figures)
     print(res.report())
@@ -190,7 +190,7 @@ def _import(args) -> int:
 
 
 def _example(args) -> int:
-    from .examples import run_paper_example
+    from .app.paper_example import run_paper_example
 
     res = run_paper_example(args.out, n_frequencies=args.frequencies, figures=not args.no_figures,
                             progress=not args.quiet)
@@ -205,7 +205,7 @@ COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate":
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["public-data"]:  # its options belong to the examples' own parser
-        from .examples_data import main as examples_main
+        from .app.public_data import main as examples_main
 
         return examples_main(argv[1:])
     parser = build_parser()

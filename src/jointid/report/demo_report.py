@@ -1,6 +1,6 @@
 """The demo's report: figures (PNG, SVG), tables and the self-contained ``report.html``.
 
-:func:`demo_figures` draws the seed's Figs 9-19 from a :class:`~jointid.demo.DemoResult`,
+:func:`demo_figures` draws the seed's Figs 9-19 from a :class:`~jointid.app.demo.DemoResult`,
 :func:`save_figures` writes them, :func:`demo_sections` lays out the page and
 :func:`write_demo_html` writes it with :func:`jointid.report.html.write_html` (every
 figure embedded, every text escaped, no network needed).

@@ -1,4 +1,4 @@
-"""Write a :class:`~jointid.workflow.CampaignResult` to a folder: JSON, CSV, text and figures."""
+"""Write a :class:`~jointid.app.workflow.CampaignResult` to a folder: JSON, CSV, text and figures."""
 
 from __future__ import annotations
 

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.results import atomic_savefig, atomic_write, write_json
-from .report.tables import format_table
+from ..io.results import atomic_savefig, atomic_write, write_json
+from ..report.tables import format_table
 
 __all__ = ["PAPER", "paper_config", "run_paper_example", "PaperExampleResult"]
 
@@ -128,7 +128,7 @@ def _tables(r21, r22) -> dict:
 
 def run_paper_example(out_dir, n_frequencies=41, figures=True, progress=False, n_harmonics_fit=9) -> PaperExampleResult:
     """Simulate, identify, tabulate and plot the paper's numerical example into ``out_dir``."""
-    from .report.output import write_results
+    from ..report.output import write_results
     from .synthesis import load_simulation_config, simulate_campaign
     from .workflow import identify_campaign
 
@@ -150,9 +150,9 @@ def run_paper_example(out_dir, n_frequencies=41, figures=True, progress=False, n
 
 
 def _figures(cfg, r21, fig_dir):
-    from .report.identify_plots import new_axes, plot_damping_law, plot_parameters_vs_frequency
-    from .simulate.hbm import frequency_response
-    from .simulate.model import SingleModeModel
+    from ..report.identify_plots import new_axes, plot_damping_law, plot_parameters_vs_frequency
+    from ..simulate.hbm import frequency_response
+    from ..simulate.model import SingleModeModel
 
     preload, model = cfg.models[0]
     omegas = np.linspace(cfg.omegas.min(), cfg.omegas.max(), 201)

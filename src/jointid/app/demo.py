@@ -9,7 +9,7 @@
    first three natural frequencies (Table 4 analogue) and the seed beam's joint and
    clamp stiffnesses are updated to them; the updated structure is written into the
    campaign's ``[structure]`` section;
-3. **identification** -- :func:`jointid.workflow.identify_campaign` turns the records
+3. **identification** -- :func:`jointid.app.workflow.identify_campaign` turns the records
    into the first modal coordinate with the updated mode shape and identifies
    ``omega1``, ``k3`` and ``c`` by force-state mapping, the damping law ``c(q_max)``
    and the power law ``U = alpha F^n``;
@@ -38,13 +38,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import JointidWarning
-from .modal.beam import SEED_TABLE4_HZ, seed_bolted_beam
-from .modal.structure import Structure
-from .modal.updating import update_to_frequencies
-from .rig.plan import RigCampaign, MeasurementPlan, read_random_record, run_test_plan, structure_section, write_manifest
-from .rig.rig import RigFRF, VirtualRig, parabolic_peak, seed_rig
-from .signal.frf import fit_modes, h1_estimate
+from ..errors import JointidWarning
+from ..modal.beam import SEED_TABLE4_HZ, seed_bolted_beam
+from ..modal.structure import Structure
+from ..modal.updating import update_to_frequencies
+from ..rig.plan import RigCampaign, MeasurementPlan, read_random_record, run_test_plan, structure_section, write_manifest
+from ..rig.rig import RigFRF, VirtualRig, parabolic_peak, seed_rig
+from ..signal.frf import fit_modes, h1_estimate
 from .workflow import CampaignResult, IdentifySettings, identify_campaign
 
 __all__ = ["DemoSettings", "Reprediction", "PreloadResult", "DemoResult", "run_demo", "CHECK_LIMITS"]
@@ -258,7 +258,7 @@ class DemoResult:
         raise KeyError(p)
 
     def summary(self) -> dict:
-        from . import __version__
+        from .. import __version__
 
         return {
             "jointid_version": __version__,
@@ -270,7 +270,7 @@ class DemoResult:
 
     def report(self) -> str:
         """The acceptance checks as text (one line each)."""
-        from .report.demo_report import check_rows
+        from ..report.demo_report import check_rows
 
         lines = [f"jointid demo in {self.out_dir}: {self.timings.get('total', float('nan')):.1f} s"]
         for row in check_rows(self):
@@ -303,8 +303,8 @@ def _updating(camp: RigCampaign, settings: DemoSettings):
 
 def _measured_frf(camp: RigCampaign, result: CampaignResult, force_level, sensor="accel_42"):
     """Fundamental of the recorded sensor over that of the recorded force, per dwell of a level."""
-    from .io.campaign import read_record
-    from .signal.harmonics import fit_harmonics
+    from ..io.campaign import read_record
+    from ..signal.harmonics import fit_harmonics
 
     f, H = [], []
     for o in result.records:
@@ -345,8 +345,8 @@ def _exact_frf(camp: RigCampaign, force_level, sensor="accel_42", refine=9) -> R
 
 def _reprediction(pr_camp: RigCampaign, result: CampaignResult, structure: Structure, force_level, n_points,
                   sensor="accel_42") -> Reprediction | None:
-    from .simulate.hbm import frequency_response
-    from .simulate.model import SingleModeModel
+    from ..simulate.hbm import frequency_response
+    from ..simulate.model import SingleModeModel
 
     preload = pr_camp.rig.preload
     g = result.group(preload, force_level)
@@ -437,8 +437,8 @@ def _joint_exponent(preload, result: CampaignResult) -> dict | None:
 
 
 def _uff_csv_identical(camp: RigCampaign) -> bool | None:
-    from .io.campaign import RecordSpec, read_record
-    from .io.uff import read_uff
+    from ..io.campaign import RecordSpec, read_record
+    from ..io.uff import read_uff
 
     if not {"csv", "uff"} <= set(camp.plan.formats):
         return None
@@ -590,7 +590,7 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     paths = {}
     cached = []
     if figures:
-        from .report.demo_report import demo_figures, save_figures
+        from ..report.demo_report import demo_figures, save_figures
 
         t0 = time.perf_counter()
         draft = DemoResult(out, settings, tuple(results), _checks(results, time.perf_counter() - t_start), timings)
@@ -602,10 +602,10 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     timings["total"] = time.perf_counter() - t_start
     demo = DemoResult(out, settings, tuple(results), _checks(results, timings["total"]), timings, paths)
     if figures:
-        from .report.demo_report import write_demo_html
+        from ..report.demo_report import write_demo_html
 
         paths["html"] = str(write_demo_html(demo, out, cached))
-    from .io.results import write_json
+    from ..io.results import write_json
 
     paths["results"] = str(out / "results.json")
     timings["total"] = time.perf_counter() - t_start

@@ -3,7 +3,7 @@
 Each function reads a data set with :mod:`jointid.io.datasets`, runs the broadband or
 stepped-sine chain and returns a frozen result with ``summary()`` (JSON-safe) and
 ``report()`` (text); :func:`main` runs them all and prints the reports (``python -m
-jointid.examples_data [--out DIR]`` also writes the figures and ``results.json``).  The
+jointid.app.public_data [--out DIR]`` also writes the figures and ``results.json``).  The
 numbers are discussed in ``docs/public-data.md``.
 
 =========================================  ===========================================================
@@ -33,16 +33,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .identify.broadband import BroadbandFit, BroadbandForceStateMapping, EquivalentLinearTrack, equivalent_linear_track
-from .identify.gain import GainFit, PooledGainForceStateMapping, sine_dwell_signals
-from .io.datasets import (
+from ..identify.broadband import BroadbandFit, BroadbandForceStateMapping, EquivalentLinearTrack, equivalent_linear_track
+from ..identify.gain import GainFit, PooledGainForceStateMapping, sine_dwell_signals
+from ..io.datasets import (
     load_f16_sinesweep,
     load_silverbox_multilevel,
     load_silverbox_snls80mv,
     load_unesp_sine,
     silverbox_multilevel_levels,
 )
-from .signal.broadband import average_periods, find_periodic_segments, periodic_states, random_states
+from ..signal.broadband import average_periods, find_periodic_segments, periodic_states, random_states
 
 __all__ = [
     "SILVERBOX_REFERENCE",
@@ -176,7 +176,7 @@ class SilverboxMultilevelResult:
         return _pre(self.report())
 
     def plot(self, fig=None):
-        from .report.data_plots import plot_silverbox_levels
+        from ..report.data_plots import plot_silverbox_levels
 
         t = self.table()
         return plot_silverbox_levels(
@@ -306,7 +306,7 @@ class SilverboxBenchmarkResult:
         return _pre(self.report())
 
     def plot(self, ax=None):
-        from .report.data_plots import plot_simulation_error
+        from ..report.data_plots import plot_simulation_error
 
         return plot_simulation_error(self.t, self.y, self.y_sim, window=slice(*self.test_window), ax=ax)
 
@@ -331,7 +331,7 @@ def silverbox_benchmark(*, terms="q + -q^3 + q^2 + q'", estimation=tuple(range(9
     N = int(rec.meta["samples_per_period"])
     segs = find_periodic_segments(u, N)
     if len(segs) < max(max(estimation), max(validation)) + 1:
-        from .errors import RecordError
+        from ..errors import RecordError
 
         raise RecordError(f"{rec.source}: expected 10 multisine realisations, found {len(segs)} periodic stretches")
     band = (fs / N, 200.0)
@@ -561,7 +561,7 @@ class F16RestoringForceResult:
         return _pre(self.report())
 
     def plot(self, fig=None):
-        from .report.data_plots import plot_restoring_force_surface
+        from ..report.data_plots import plot_restoring_force_surface
 
         return plot_restoring_force_surface(self.x, self.v, self.f, track=self.track, fig=fig)
 
@@ -621,7 +621,7 @@ def main(argv=None) -> int:
     p.add_argument("--only", choices=("silverbox", "benchmark", "unesp", "f16"), action="append",
                    help="run only these examples (repeatable)")
     args = p.parse_args(argv)
-    from .errors import RecordFileNotFoundError
+    from ..errors import RecordFileNotFoundError
 
     runs = {"silverbox": silverbox_multilevel, "benchmark": silverbox_benchmark, "unesp": unesp_sine_dwells,
             "f16": f16_restoring_force}
@@ -637,7 +637,7 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.out is not None:
-        from .io.results import atomic_savefig, write_json
+        from ..io.results import atomic_savefig, write_json
 
         args.out.mkdir(parents=True, exist_ok=True)
         write_json(args.out / "results.json", {k: r.summary() for k, r in results.items()})

@@ -38,10 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ManifestError
-from .identify.terms import library
-from .io.campaign import read_toml, write_campaign, write_csv_record
-from .simulate.model import SingleModeModel
+from ..errors import ManifestError
+from ..identify.terms import library
+from ..io.campaign import read_toml, write_campaign, write_csv_record
+from ..simulate.model import SingleModeModel
 
 __all__ = ["SimulationConfig", "load_simulation_config", "simulate_campaign", "model_from_mapping"]
 
@@ -135,7 +135,7 @@ def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
 
 def simulate_steady_states(cfg: SimulationConfig, progress=False):
     """Harmonic-balance steady states for every (preload, force level, frequency)."""
-    from .simulate.hbm import frequency_response
+    from ..simulate.hbm import frequency_response
 
     out = []
     jobs = [(p, m, F) for p, m in cfg.models for F in cfg.force_levels]
@@ -152,7 +152,7 @@ def simulate_steady_states(cfg: SimulationConfig, progress=False):
 
 def simulate_campaign(config, out_dir, progress=False) -> Path:
     """Write a campaign folder (``campaign.toml`` + ``records/NNNN.csv``) from a configuration."""
-    from .simulate.synth import synthesize_record
+    from ..simulate.synth import synthesize_record
 
     cfg = config if isinstance(config, SimulationConfig) else load_simulation_config(config)
     out = Path(out_dir)

@@ -1,0 +1,9 @@
+"""The application layer: the workflows that a command runs, built on the core packages.
+
+* :mod:`~jointid.app.records` -- one record through the chain, and all records of a campaign;
+* :mod:`~jointid.app.workflow` -- a campaign identified: groups, damping and power laws;
+* :mod:`~jointid.app.synthesis` -- simulated campaigns from a TOML configuration;
+* :mod:`~jointid.app.paper_example` -- the seed paper's numerical example (Section 4);
+* :mod:`~jointid.app.demo` -- the seed's experiment on the virtual rig;
+* :mod:`~jointid.app.public_data` -- worked examples on the public measured data sets.
+"""
