@@ -16,10 +16,12 @@ __all__ = [
     "StructureError",
     "ConvergenceError",
     "IdentificationError",
+    "OutputError",
     "JointidWarning",
     "IllConditionedWarning",
     "ConvergenceWarning",
     "where",
+    "unknown_key_message",
 ]
 
 
@@ -34,6 +36,19 @@ def where(file=None, record=None, channel=None) -> str:
     if parts:
         head = f"{head} [{', '.join(parts)}]" if head else ", ".join(parts)
     return f"{head}: " if head else ""
+
+
+def unknown_key_message(key, valid, what="key") -> str:
+    """``"unknown key 'frequncy_hz'; did you mean 'frequency_hz'? (valid: ...)"``.
+
+    The nearest valid name is found with :func:`difflib.get_close_matches`.
+    """
+    import difflib
+
+    valid = sorted(str(v) for v in valid)
+    close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown {what} {key!r}{hint} (valid: {', '.join(valid)})"
 
 
 class JointidError(Exception):
@@ -62,6 +77,10 @@ class ConvergenceError(JointidError, RuntimeError):
 
 class IdentificationError(JointidError, ValueError):
     """An identification step cannot be carried out with the data given."""
+
+
+class OutputError(JointidError, OSError):
+    """An output folder cannot be written (an existing file, below a file, read-only)."""
 
 
 class JointidWarning(UserWarning):

@@ -63,6 +63,10 @@ __all__ = [
 ]
 
 #: Cantilever eigenvalues ``beta_n L`` of the first five bending modes.
+#: Largest number of beam elements: the FE matrices are dense, 2 (n + 1) square (2000 elements: 0.26 GB for
+#: the eigenproblem's working copies); a beam needs far fewer for the first modes.
+MAX_ELEMENTS = 2000
+
 _CANTILEVER_BETA_L = (1.8751040687, 4.6940911330, 7.8547574382, 10.9955407349, 14.1371683910)
 
 
@@ -401,6 +405,10 @@ class JointedBeam:
         n = self.n_elements
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < (2 if self.joint is not None else 1):
             raise StructureError(f"n_elements: expected an integer >= 2, got {n!r}")
+        if n > MAX_ELEMENTS:
+            raise StructureError(
+                f"n_elements: expected at most {MAX_ELEMENTS} (dense matrices of 2 (n + 1) DOFs), got {n!r}"
+            )
         object.__setattr__(self, "n_elements", int(n))
         object.__setattr__(self, "clamp_stiffness", _positive("clamp_stiffness", self.clamp_stiffness, allow_inf=True))
         if self.joint_position is not None:

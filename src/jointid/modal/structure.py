@@ -68,7 +68,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import JointidWarning, RecordError, StructureError
+from ..errors import JointidWarning, RecordError, StructureError, unknown_key_message
 from .analysis import ModalModel, modal_analysis
 from .beam import SEED_GEOMETRY, BeamSection, JointedBeam, seed_bolted_beam
 from .coordinates import ModalAcceleration, modal_acceleration, sensor_shapes
@@ -118,7 +118,7 @@ def _table(ctx: str, value, allowed: set | None = None) -> dict:
     if allowed is not None:
         unknown = sorted(set(value) - allowed)
         if unknown:
-            raise StructureError(f"{ctx}.{unknown[0]}: unknown key; expected some of {sorted(allowed)}")
+            raise StructureError(f"{ctx}.{unknown[0]}: {unknown_key_message(unknown[0], allowed)}")
     return dict(value)
 
 
