@@ -249,22 +249,92 @@ SEED_TERMS = ("q", "-q^3", "q'")
 EQ22_TERMS = ("q", "-q^3", "q'", "|q'|q'", "q'^3")
 
 
+def _canonical(name: str) -> str:
+    """A term name with white space, ``*`` products and ``**`` powers normalised away."""
+    return name.replace("’", "'").replace("**", "^").replace("*", "").replace(" ", "")
+
+
+#: Other spellings of standard terms: the velocity as ``v`` or ``dq``; a cubic written without its sign.
+_ALIASES = {"v": "q'", "dq": "q'", "|v|v": "|q'|q'", "v^3": "q'^3", "sign(v)": "sign(q')", "q^3": "-q^3",
+            "q^2v": "q^2q'"}
+_BY_CANONICAL = {_canonical(n): n for n in STANDARD_TERMS}
+#: Named term sets.
+_NAMED_SETS = {"seed": SEED_TERMS, "paper": SEED_TERMS, "eq21": SEED_TERMS, "eq22": EQ22_TERMS}
+
+
 def term(name: str) -> Term:
-    """Look up a standard term by name (``"q"``, ``"-q^3"``, ``"q'"``, ``"sign(q')"``, ...)."""
-    key = name.strip().replace(" ", "").replace("’", "'")
-    aliases = {"q^3": "-q^3", "-q3": "-q^3", "v": "q'", "dq": "q'", "|v|v": "|q'|q'", "v^3": "q'^3", "sign(v)": "sign(q')"}
-    key = aliases.get(key, key)
-    if key not in STANDARD_TERMS:
-        raise IdentificationError(f"unknown term {name!r}; the standard terms are {sorted(STANDARD_TERMS)}")
+    """Look up a standard term by name (``"q"``, ``"-q^3"``, ``"q'"``, ``"sign(q')"``, ...).
+
+    White space and ``*`` are ignored, ``**`` reads as ``^`` and the velocity may be written
+    ``v``.  A name that is none of these is refused with the closest standard names.
+    """
+    key = _canonical(name.strip())
+    key = _BY_CANONICAL.get(_ALIASES.get(key, key))
+    if key is None:
+        import difflib
+        import re
+
+        written = _canonical(name.strip())
+        power = re.fullmatch(r"(-?q'?)(\d)", written)  # q3 for q^3
+        close = [power[1] + "^" + power[2]] if power else []
+        close = [_ALIASES.get(c, c) for c in close if _ALIASES.get(c, c) in _BY_CANONICAL] or difflib.get_close_matches(
+            written, list(_BY_CANONICAL), n=3, cutoff=0.5)
+        hint = f"; did you mean {' or '.join(repr(_BY_CANONICAL[c]) for c in close)}?" if close else ""
+        raise IdentificationError(
+            f"unknown term {name.strip()!r}{hint} The standard terms are {sorted(STANDARD_TERMS)}"
+        )
     return STANDARD_TERMS[key]
 
 
-def library(spec="q + -q^3 + q'") -> TermLibrary:
-    """Build a :class:`TermLibrary` from names.
+def _split_algebra(spec: str) -> list:
+    """Split ``"q - q^3 + q'"`` into signed pieces ``["q", "-q^3", "q'"]``.
 
-    ``spec`` is a library, a sequence of names/terms, or a string of names separated by
-    ``,`` or `` + `` (``"q + -q^3 + q'"``, ``"q,-q^3,q'"``).  The shorthand ``"seed"``
-    gives Eq 21 and ``"eq22"`` gives Eq 22.
+    A ``+`` or ``-`` starts a new term unless it follows ``^`` (an exponent's sign) or
+    opens the expression; the sign stays with the term it precedes.
+    """
+    pieces, cur, depth = [], "", 0
+    for ch in spec:
+        depth += ch == "("
+        depth -= ch == ")"
+        if ch in "+-" and depth == 0 and cur.strip(" +-") and not cur.rstrip().endswith("^"):
+            pieces.append(cur)
+            cur = ch
+        else:
+            cur += ch
+    pieces.append(cur)
+    return [p.strip() for p in pieces]
+
+
+def _signed_term(piece: str, spec: str) -> Term:
+    """The standard term of one signed piece of an expression.
+
+    A coefficient is free in the regression, so the sign written before a term only
+    selects the name it is reported under: ``- q^3`` and ``+ q^3`` both mean the cubic
+    term ``-q^3`` with coefficient ``k3`` (seed convention, ``k3 > 0`` softening), and
+    ``- q'`` is the term ``q'``.
+    """
+    if piece.startswith("+"):
+        piece = piece[1:].strip()
+    body = piece[1:].strip() if piece.startswith("-") else piece
+    if not body or body[0] in "+-":
+        raise IdentificationError(f"term specification {spec!r}: a '+' or '-' is not followed by a term")
+    if piece.startswith("-") and _canonical("-" + body) in _BY_CANONICAL:
+        return term("-" + body)
+    return term(body)
+
+
+def library(spec="q + -q^3 + q'") -> TermLibrary:
+    """Build a :class:`TermLibrary` from names or from algebra.
+
+    ``spec`` is a library, a sequence of names/terms, or a string: natural algebra
+    (``"q - q^3 + q'"``), names separated by commas (``"q, -q^3, q'"``), or a named set:
+    ``"seed"``/``"eq21"`` (seed Eq 21) and ``"eq22"`` (Eq 22).  Coefficients are not
+    written: every term gets its own, whose sign is free.
+
+    >>> library("q - q^3 + q'").coefficient_names
+    ('omega1^2', 'k3', 'c')
+    >>> library("eq22").names
+    ('q', '-q^3', "q'", "|q'|q'", "q'^3")
     """
     if isinstance(spec, TermLibrary):
         return spec
@@ -272,14 +342,12 @@ def library(spec="q + -q^3 + q'") -> TermLibrary:
         return TermLibrary((spec,))
     if isinstance(spec, str):
         s = spec.strip()
-        if s.lower() in ("seed", "eq21", "paper"):
-            return library(SEED_TERMS)
-        if s.lower() == "eq22":
-            return library(EQ22_TERMS)
-        # split on commas or on a '+' that separates terms (surrounded by spaces)
-        pieces = [p for chunk in s.split(",") for p in chunk.split(" + ")]
-        pieces = [p.strip() for p in pieces if p.strip()]
-        if not pieces:
+        if s.lower() in _NAMED_SETS:
+            return library(_NAMED_SETS[s.lower()])
+        pieces = [p for chunk in s.split(",") for p in _split_algebra(chunk)]
+        if not s or not any(pieces):
             raise IdentificationError(f"empty term specification {spec!r}")
-        return TermLibrary(tuple(term(p) for p in pieces))
+        if any(not p for p in pieces):
+            raise IdentificationError(f"term specification {spec!r}: an empty term (two separators in a row)")
+        return TermLibrary(tuple(_signed_term(p, spec) for p in pieces))
     return TermLibrary(tuple(t if isinstance(t, Term) else term(t) for t in spec))
