@@ -11,6 +11,13 @@ A campaign is a folder with a manifest::
     frequency_hz = 26.48         # optional: estimated from the force when absent
     force_level = 1.5            # grouping key
     preload = 120                # grouping key
+    excitation = "stepped-sine"  # optional: "stepped-sine" (default), "multisine" (with period_s),
+                                 # "random" or "ringdown"
+
+A physical campaign has a ``[structure]`` table (see :mod:`jointid.modal.structure`), or one per
+preload: ``[structure.120]`` tables keyed by the preload label, each a structure table or
+``{ file = "structure_120.toml" }`` (a TOML file in the campaign folder with a ``[structure]``
+table); :meth:`Campaign.structure_for` returns the table of a preload.
 
 A CSV record has one header row: ``time`` [s], ``force``, then the acceleration
 column(s) (``accel`` in a modal campaign).  Other record formats (UFF 58, HDF5, MAT) are
@@ -18,7 +25,10 @@ read by extension (UFF 58, HDF5); other exports are converted with ``jointid imp
 
 Nothing is guessed silently: a path leaving the folder (that record is refused), a missing file, a missing
 column, values that are not finite, columns of different lengths and a time base that is
-not uniform are refused with an error naming the file, the record and the channel.
+not uniform are refused with an error naming the file, the record and the channel.  The
+manifest itself is checked before any work: UTF-8 text, known keys (an unknown key names the
+nearest valid one), types, finite values, bounded sizes; a problem of one entry (a bad value,
+a duplicated file) fails that record only.
 """
 
 from __future__ import annotations
@@ -31,14 +41,27 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ManifestError, RecordError, RecordFileNotFoundError, where
+from ..errors import ManifestError, RecordError, RecordFileNotFoundError, unknown_key_message, where
 from .channels import validate_channels
 
-__all__ = ["RecordSpec", "Campaign", "read_toml", "load_campaign", "read_record", "RecordData", "write_campaign", "write_csv_record"]
+__all__ = ["RecordSpec", "Campaign", "read_toml", "read_text", "load_campaign", "read_record", "RecordData",
+           "write_campaign", "write_csv_record", "EXCITATIONS", "RECORD_KEYS"]
 
 COORDINATES = ("modal", "physical")
-#: Allowed deviation of a time step from the mean step, as a fraction of it.
+#: Allowed deviation of a time step from the mean step, as a fraction of it (time stamps written
+#: as text with few digits); the same tolerance for ``jointid import`` and ``jointid identify``.
 CSV_TIME_RTOL = 1e-2
+#: Kinds of excitation a record may declare (``excitation`` key); the first is the default.
+EXCITATIONS = ("stepped-sine", "multisine", "random", "ringdown")
+#: Keys of a ``[[record]]`` entry; anything else is an error naming the nearest of these.
+RECORD_KEYS = ("file", "frequency_hz", "force_level", "preload", "excitation", "period_s", "settled")
+#: Top-level tables of a manifest.
+MANIFEST_KEYS = ("campaign", "record", "structure")
+#: Size bounds: records per campaign, samples per record, bytes of a manifest or record file.
+MAX_RECORDS = 100_000
+MAX_SAMPLES = 20_000_000
+MAX_MANIFEST_BYTES = 64 * 2**20
+MAX_RECORD_BYTES = 4 * 2**30
 
 
 @dataclass(frozen=True)
@@ -53,6 +76,8 @@ class RecordSpec:
     preload: Any
     extra: dict = field(default_factory=dict)
     error: str | None = None
+    excitation: str = "stepped-sine"
+    period_s: float | None = None
 
     @property
     def group(self) -> tuple:
@@ -69,6 +94,25 @@ class Campaign:
     records: tuple
     structure: dict | None = None
     manifest: dict = field(default_factory=dict, repr=False)
+    structures: dict | None = None  # per-preload [structure.<preload>] tables (label -> table), else None
+
+    def structure_for(self, preload) -> dict | None:
+        """The ``[structure]`` table of a preload: the per-preload one when given, else the common one.
+
+        Raises
+        ------
+        ManifestError
+            When per-preload structures are given but none for this preload.
+        """
+        if self.structures is None:
+            return self.structure
+        for label, table in self.structures.items():
+            if _same_label(label, preload):
+                return table
+        raise ManifestError(
+            f"{self.root / 'campaign.toml'}: no [structure.{preload}] table for preload {preload!r}; "
+            f"structures are given for {list(self.structures)}"
+        )
 
 
 @dataclass(frozen=True)
@@ -90,24 +134,144 @@ def _number(value, key, ctx):
     return float(value)
 
 
+def _same_label(label, value) -> bool:
+    """Whether a TOML table key (always text) names a grouping value (``"120"`` ~ ``120`` ~ ``120.0``)."""
+    if str(label) == str(value):
+        return True
+    try:
+        return float(label) == float(value)
+    except (TypeError, ValueError):
+        return False
+
+
+def check_regular_file(path, what="file", error=RecordFileNotFoundError, max_bytes=None) -> Path:
+    """``path`` as a :class:`~pathlib.Path` when it is an existing regular file (not a folder or device).
+
+    Raises
+    ------
+    RecordFileNotFoundError
+        (or ``error``) when it does not exist, is a folder or is not a regular file.
+    ManifestError
+        When it is larger than ``max_bytes``.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise error(f"{path}: {what} not found")
+    if path.is_dir():
+        raise error(f"{path}: {what} expected, got a folder")
+    if not path.is_file():
+        raise error(f"{path}: {what} expected, got a device or special file")
+    if max_bytes is not None and path.stat().st_size > max_bytes:
+        raise ManifestError(f"{path}: {what} of {path.stat().st_size} bytes exceeds the limit of {max_bytes} bytes")
+    return path
+
+
+def _decode(raw: bytes, path, what) -> str:
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff") or (raw and raw.count(0) > len(raw) // 8):
+        kind = "UTF-16 text" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") or raw[1::2].count(0) > len(raw) // 4 else "binary data"
+        raise ManifestError(f"{path}: {what} must be UTF-8 text, got {kind}; save it as UTF-8")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise ManifestError(
+            f"{path}: {what} must be UTF-8 text, got byte 0x{raw[exc.start]:02x} on line {line} "
+            f"(another encoding or binary data); save it as UTF-8"
+        ) from None
+
+
+def read_text(path, what="file", max_bytes=MAX_MANIFEST_BYTES) -> str:
+    """The text of a UTF-8 file; a folder, device, oversize, UTF-16 or binary file is a clear error.
+
+    Raises
+    ------
+    RecordFileNotFoundError
+        When ``path`` is not an existing regular file.
+    ManifestError
+        When the file is too large or not UTF-8 text.
+    """
+    path = check_regular_file(path, what, max_bytes=max_bytes)
+    return _decode(path.read_bytes(), path, what)
+
+
 def read_toml(path, what="file") -> dict:
-    """Parse a TOML file; a missing file or invalid TOML is an error naming the file.
+    """Parse a TOML file; a missing file, a file that is not UTF-8 text or invalid TOML is an
+    error naming the file.
 
     Raises
     ------
     RecordFileNotFoundError
         When ``path`` is not a file (``what`` says which file was expected).
     ManifestError
-        When the file is not valid TOML.
+        When the file is not UTF-8 text or not valid TOML.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise RecordFileNotFoundError(f"{path}: {what} not found")
+    text = read_text(path, what)
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ManifestError(f"{path}: not valid TOML ({exc})") from exc
+
+
+def check_keys(table: dict, valid, ctx: str, what="key") -> None:
+    """A :class:`ManifestError` for the first key of ``table`` not in ``valid``, naming the nearest valid one."""
+    for key in table:
+        if key not in valid:
+            raise ManifestError(f"{ctx}{unknown_key_message(key, valid, what)}")
+
+
+def _label(value, key, ctx):
+    """A grouping value (preload, force level): a finite number or a short text, else a ManifestError."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ManifestError(f"{ctx}{key} must be a number or a text label, got {type(value).__name__} {value!r}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ManifestError(f"{ctx}{key} must be finite, got {value!r}")
+    if isinstance(value, str) and not (0 < len(value.strip()) <= 200):
+        raise ManifestError(f"{ctx}{key} must be a text of 1 to 200 characters, got {len(value)} characters")
+    return value
+
+
+def _excitation(entry, ctx):
+    kind = entry.get("excitation", EXCITATIONS[0])
+    if kind not in EXCITATIONS:
+        raise ManifestError(f"{ctx}excitation must be one of {list(EXCITATIONS)}, got {kind!r}")
+    period = _number(entry.get("period_s"), "period_s", ctx)
+    if kind == "multisine" and period is None:
+        raise ManifestError(f"{ctx}a multisine record needs period_s (the period of the multisine in s)")
+    if period is not None and (kind != "multisine" or period <= 0):
+        raise ManifestError(f"{ctx}period_s must be a positive period of a multisine record, got {period!r} "
+                            f"with excitation {kind!r}")
+    return kind, period
+
+
+def _structures(structure, root: Path, manifest_path: Path):
+    """Per-preload structure tables when ``[structure]`` holds tables keyed by preload, else ``None``."""
+    if structure is None:
+        return None
+    if not isinstance(structure, dict):
+        raise ManifestError(f"{manifest_path}: [structure] must be a table, got {structure!r}")
+    from ..modal.structure import _TOP_KEYS  # the keys of one structure table
+
+    if not structure or set(structure) & set(_TOP_KEYS):
+        return None  # one structure for every preload (validated by jointid.modal.structure)
+    out = {}
+    for label, table in structure.items():
+        ctx = f"{manifest_path} [structure.{label}]: "
+        if not isinstance(table, dict):
+            raise ManifestError(f"{ctx}{unknown_key_message(label, _TOP_KEYS)}; or a per-preload table")
+        if "file" in table:
+            if set(table) != {"file"} or not isinstance(table["file"], str) or not table["file"]:
+                raise ManifestError(f"{ctx}expected only file = \"structure.toml\" (a file name), got {table!r}")
+            p = (root / table["file"]).resolve()
+            if Path(table["file"]).is_absolute() or not p.is_relative_to(root.resolve()):
+                raise ManifestError(f"{ctx}structure file {table['file']!r} leaves the campaign folder {root}")
+            data = read_toml(p, "structure file")
+            table = data.get("structure", data)
+            if not isinstance(table, dict):
+                raise ManifestError(f"{p}: [structure] must be a table")
+        out[str(label)] = table
+    return out
 
 
 def load_campaign(folder) -> Campaign:
@@ -121,23 +285,39 @@ def load_campaign(folder) -> Campaign:
         When the campaign folder or its manifest does not exist.
     """
     root = Path(folder)
+    if root.exists() and not root.is_dir():
+        raise ManifestError(f"{root}: expected a campaign folder (with campaign.toml), got a file")
     manifest_path = root / "campaign.toml"
     data = read_toml(manifest_path, "campaign manifest")
+    check_keys(data, MANIFEST_KEYS, f"{manifest_path}: ", "table")
     head = data.get("campaign", {})
     if not isinstance(head, dict):
         raise ManifestError(f"{manifest_path}: [campaign] must be a table")
     coordinates = head.get("coordinates", "modal")
     if coordinates not in COORDINATES:
         raise ManifestError(f"{manifest_path}: coordinates must be one of {COORDINATES}, got {coordinates!r}")
+    import difflib
+
+    for key in head:  # free metadata, but a near miss of a meaningful key is a typo
+        close = difflib.get_close_matches(key, ("name", "coordinates"), n=1, cutoff=0.75)
+        if close and close[0] != key:
+            raise ManifestError(f"{manifest_path}: [campaign] {unknown_key_message(key, ('name', 'coordinates'))}")
+    name = head.get("name", root.name)
+    if not isinstance(name, str):
+        raise ManifestError(f"{manifest_path}: [campaign] name must be a text, got {name!r}")
     entries = data.get("record", [])
     if not isinstance(entries, list) or not entries:
         raise ManifestError(f"{manifest_path}: expected at least one [[record]] entry")
+    if len(entries) > MAX_RECORDS:
+        raise ManifestError(f"{manifest_path}: {len(entries)} records exceed the limit of {MAX_RECORDS} per campaign; "
+                            f"split the campaign")
     root_resolved = root.resolve()
-    records = []
+    records, seen = [], {}
     for i, entry in enumerate(entries):
         ctx = f"{manifest_path} [record {i}]: "
         if not isinstance(entry, dict) or "file" not in entry:
             raise ManifestError(f"{ctx}each [[record]] needs a 'file' key")
+        check_keys(entry, RECORD_KEYS, ctx)
         rel = entry["file"]
         if not isinstance(rel, str) or not rel:
             raise ManifestError(f"{ctx}'file' must be a non-empty string, got {rel!r}")
@@ -146,41 +326,63 @@ def load_campaign(folder) -> Campaign:
         p = (root / rel).resolve()
         if Path(rel).is_absolute() or not p.is_relative_to(root_resolved):
             error = f"{where(rel, i)}record path leaves the campaign folder {root}; it is refused"
+        elif p in seen:
+            error = f"{where(rel, i)}the same file as record {seen[p]}; a record is counted once"
+        seen.setdefault(p, i)
+        values = {}
+        for key, check in (("frequency_hz", _number), ("force_level", _label), ("preload", _label)):
+            try:
+                values[key] = check(entry.get(key), key, "")
+                if key == "frequency_hz" and values[key] is not None and values[key] <= 0:
+                    raise ManifestError(f"frequency_hz must be positive, got {values[key]!r}")
+            except ManifestError as exc:
+                values[key] = None
+                error = error or f"{where(rel, i)}manifest entry: {exc}"
         try:
-            freq = _number(entry.get("frequency_hz"), "frequency_hz", "")
-            if freq is not None and freq <= 0:
-                raise ManifestError(f"frequency_hz must be positive, got {freq!r}")
+            kind, period = _excitation(entry, "")
         except ManifestError as exc:
-            freq, error = None, error or f"{where(rel, i)}manifest entry: {exc}"
-        known = {"file", "frequency_hz", "force_level", "preload"}
+            kind, period = EXCITATIONS[0], None
+            error = error or f"{where(rel, i)}manifest entry: {exc}"
+        known = {"file", "frequency_hz", "force_level", "preload", "excitation", "period_s"}
         records.append(
             RecordSpec(
                 index=i,
                 file=rel,
                 path=p,
-                frequency_hz=freq,
-                force_level=entry.get("force_level"),
-                preload=entry.get("preload"),
+                frequency_hz=values["frequency_hz"],
+                force_level=values["force_level"],
+                preload=values["preload"],
                 extra={k: v for k, v in entry.items() if k not in known},
                 error=error,
+                excitation=kind,
+                period_s=period,
             )
         )
     structure = data.get("structure")
     if coordinates == "physical" and structure is None:
         raise ManifestError(f"{manifest_path}: a physical campaign needs a [structure] section")
-    return Campaign(root, str(head.get("name", root.name)), coordinates, tuple(records), structure, data)
+    structures = _structures(structure, root, manifest_path)
+    return Campaign(root, name, coordinates, tuple(records), structure, data, structures)
 
 
 def _read_csv(path: Path, spec: RecordSpec):
-    with open(path, "r", encoding="utf-8-sig") as fh:
-        header = fh.readline()
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    try:
+        _decode(head, where(path, spec.index)[:-2], "record file")
+    except ManifestError as exc:
+        raise RecordError(str(exc)) from None
+    header = head.decode("utf-8-sig", errors="replace").splitlines()[0] if head else ""
     names = [h.strip() for h in header.strip().split(",")]
     if not names or names == [""]:
         raise RecordError(f"{where(path, spec.index)}empty file; expected a header row 'time,force,...'")
     if len(set(names)) != len(names):
         raise RecordError(f"{where(path, spec.index)}duplicate column names in header {names}")
     try:
-        rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise RecordError(f"{where(path, spec.index)}record file must be UTF-8 text; it holds bytes that are "
+                          f"not (another encoding or binary data); save it as UTF-8") from None
     except ValueError as exc:
         msg = str(exc)
         raise RecordError(
@@ -203,8 +405,14 @@ def read_record(spec: RecordSpec, required=("time", "force", "accel")) -> Record
     path = spec.path
     if spec.error:
         raise ManifestError(spec.error)
+    loc = where(spec.file, spec.index)
+    if not path.exists():
+        raise RecordFileNotFoundError(f"{loc}record file not found ({path})")
     if not path.is_file():
-        raise RecordFileNotFoundError(f"{where(spec.file, spec.index)}record file not found ({path})")
+        kind = "a folder" if path.is_dir() else "a device or special file"
+        raise RecordError(f"{loc}expected a record file, got {kind} ({path})")
+    if path.stat().st_size > MAX_RECORD_BYTES:
+        raise RecordError(f"{loc}file of {path.stat().st_size} bytes exceeds the limit of {MAX_RECORD_BYTES} bytes")
     suffix = path.suffix.lower()
     if suffix in (".csv", ".txt"):
         cols = _read_csv(path, spec)
@@ -215,6 +423,10 @@ def read_record(spec: RecordSpec, required=("time", "force", "accel")) -> Record
         raise RecordError(
             f"{where(spec.file, spec.index, missing[0])}missing column; expected {list(required)}, found {sorted(cols)}"
         )
+    n = np.size(cols["time"])
+    if n > MAX_SAMPLES:
+        raise RecordError(f"{where(spec.file, spec.index, 'time')}{n} samples exceed the limit of {MAX_SAMPLES} "
+                          f"per record; split or decimate the record")
     # CSV time stamps are often printed with few digits: allow 1 % jitter of the step
     validate_channels(cols["time"], {k: v for k, v in cols.items() if k != "time"},
                       source=where(spec.file, spec.index)[:-2], time_rtol=CSV_TIME_RTOL)
