@@ -17,6 +17,7 @@ __all__ = [
     "ConvergenceError",
     "IdentificationError",
     "OutputError",
+    "SchedulerError",
     "JointidWarning",
     "IllConditionedWarning",
     "ConvergenceWarning",
@@ -81,6 +82,10 @@ class IdentificationError(JointidError, ValueError):
 
 class OutputError(JointidError, OSError):
     """An output folder cannot be written (an existing file, below a file, read-only)."""
+
+
+class SchedulerError(JointidError, ConnectionError):
+    """The dask scheduler given for parallel work cannot be reached."""
 
 
 class JointidWarning(UserWarning):

@@ -7,7 +7,6 @@
 
 from __future__ import annotations
 
-import os
 import warnings
 from dataclasses import dataclass, field
 
@@ -47,8 +46,10 @@ class IdentifySettings:
         Check a manifest's ``frequency_hz`` on the force and replace a value that would
         drift the phase by more than 0.01 rad over the record (a rounded log), with a warning.
     jobs : int
-        Worker processes for the records (``1``: in this process; ``0``: one per core).
-        Results do not depend on it.
+        Worker processes for the records: ``1``, in this process; ``N``, a local dask
+        cluster of ``N`` workers; ``0``, one per core.  Results do not depend on it.
+    scheduler : str, optional
+        Address of an existing dask scheduler to run the records on (overrides ``jobs``).
     progress : bool
         Show a progress bar.
     """
@@ -60,6 +61,7 @@ class IdentifySettings:
     force_gain: str = "known"
     refine_frequency: bool = True
     jobs: int = 1
+    scheduler: str | None = None
     progress: bool = False
 
     def __post_init__(self):
@@ -74,7 +76,7 @@ class IdentifySettings:
             "weighting": self.weighting,
             "force_gain": self.force_gain,
             "refine_frequency": self.refine_frequency,
-        }  # jobs and progress do not change results
+        }  # jobs, scheduler and progress do not change results
 
 @dataclass(frozen=True)
 class RecordOutcome:
@@ -176,25 +178,9 @@ def _caught(caught) -> dict:
 
 
 def process_all(specs, settings, to_modal) -> list:
-    """:func:`process_record` over all records, in worker processes when ``settings.jobs != 1``."""
-    from tqdm.auto import tqdm
+    """:func:`process_record` over all records, on dask workers when ``settings.jobs != 1`` or a
+    ``settings.scheduler`` is given (see :mod:`jointid.app.parallel`); outcomes in the records' order."""
+    from .parallel import map_tasks
 
-    jobs = settings.jobs if settings.jobs > 0 else (os.cpu_count() or 1)
-    bar = tqdm(total=len(specs), desc="records", unit="rec", disable=not settings.progress)
-    if jobs == 1 or len(specs) < 2:
-        outcomes = []
-        for spec in specs:
-            outcomes.append(process_record(spec, settings, to_modal))
-            bar.update()
-        bar.close()
-        return outcomes
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    outcomes = [None] * len(specs)
-    with ProcessPoolExecutor(max_workers=min(jobs, len(specs))) as pool:
-        futures = {pool.submit(process_record, spec, settings, to_modal): i for i, spec in enumerate(specs)}
-        for fut in as_completed(futures):
-            outcomes[futures[fut]] = fut.result()
-            bar.update()
-    bar.close()
-    return outcomes
+    return map_tasks(process_record, [(spec, settings, to_modal) for spec in specs], jobs=settings.jobs,
+                     scheduler=settings.scheduler, progress=settings.progress, desc="records")

@@ -1,0 +1,191 @@
+"""Parallel work on dask.distributed: records of a campaign, campaigns of a study.
+
+One engine for all parallel work.  :func:`map_tasks` calls a function on a list of
+argument tuples and returns the results in the order of the list:
+
+* ``jobs=1`` and no ``scheduler`` (the default): in this process, one after the other;
+  dask is not even imported;
+* ``jobs=N`` (``0``: one per core): a ``distributed.LocalCluster`` of ``N`` single-threaded
+  worker processes on the loopback interface, started for the call and closed after it;
+* ``scheduler="tcp://host:8786"``: the workers of an existing cluster (``dask scheduler``
+  and ``dask worker``, or any cluster manager that gives a scheduler address).
+
+A task receives plain arguments (paths, record specifications, settings, arrays) and
+returns plain data; nothing is written to disk between the steps.  Results are placed
+by their index, so they do not depend on the number of workers or on the order in which
+the tasks finish.  Every task runs with single-threaded BLAS (see :mod:`jointid._blas`),
+in a worker as in this process, so the floating-point results are bit-identical.
+
+A worker that dies is replaced (the nanny restarts it) and its tasks run again on the
+others: a task may be lost with ``ALLOWED_FAILURES`` workers before the run gives up.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from contextlib import contextmanager
+
+from .._blas import single_threaded
+from ..errors import SchedulerError
+
+__all__ = ["map_tasks", "dask_client", "progress_bar", "resolve_jobs", "ALLOWED_FAILURES"]
+
+#: Workers a task may lose (killed, out of memory) before the run stops with an error.
+ALLOWED_FAILURES = 3
+
+_INSTALL = "parallel work needs dask.distributed: pip install 'distributed>=2024.1'"
+
+
+def resolve_jobs(jobs) -> int:
+    """Number of workers for ``jobs`` (``0`` or negative: one per core)."""
+    jobs = int(jobs)
+    return jobs if jobs > 0 else (os.cpu_count() or 1)
+
+
+class _LogProgress:
+    """Progress as plain lines (every tenth of the work and at the end) for logs that are no terminal."""
+
+    def __init__(self, total, desc, file):
+        self.total, self.desc, self.file = total, desc, file
+        self.n, self._next, self._t0 = 0, 0, time.perf_counter()
+
+    def update(self, n=1):
+        self.n += n
+        if self.n >= self._next or self.n == self.total:
+            elapsed = time.perf_counter() - self._t0
+            pct = 100.0 * self.n / self.total if self.total else 100.0
+            print(f"{self.desc}: {self.n}/{self.total} ({pct:.0f} %), {elapsed:.1f} s", file=self.file, flush=True)
+            self._next = self.n + max(1, self.total // 10)
+
+    def close(self):
+        pass
+
+
+class _NoProgress:
+    def update(self, n=1):
+        pass
+
+    def close(self):
+        pass
+
+
+def progress_bar(total, desc, enabled=True, file=None):
+    """A tqdm bar on a terminal, a line every tenth of the work otherwise, nothing when disabled."""
+    file = sys.stderr if file is None else file
+    if not enabled:
+        return _NoProgress()
+    if getattr(file, "isatty", lambda: False)():
+        from tqdm.auto import tqdm
+
+        return tqdm(total=total, desc=desc, file=file)
+    return _LogProgress(total, desc, file)
+
+
+@contextmanager
+def dask_client(jobs=1, scheduler=None):
+    """A ``distributed.Client``: on the cluster at ``scheduler``, or on a new local cluster.
+
+    Parameters
+    ----------
+    jobs : int
+        Worker processes of the local cluster (``0``: one per core); ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of an existing scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+
+    Raises
+    ------
+    jointid.errors.SchedulerError
+        When the scheduler cannot be reached.
+    ImportError
+        When dask.distributed is not installed (with the install command).
+    """
+    try:
+        import dask
+        from distributed import Client, LocalCluster
+    except ImportError as exc:  # pragma: no cover - distributed is a declared dependency
+        raise ImportError(_INSTALL) from exc
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout="20s")
+            except (OSError, TimeoutError) as exc:
+                raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from exc
+            with client:
+                yield client
+            return
+        import logging
+
+        cluster = LocalCluster(n_workers=resolve_jobs(jobs), threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        with cluster, Client(cluster) as client:
+            yield client
+
+
+def _call(fn, args):
+    return single_threaded(fn)(*args)
+
+
+def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=False, desc="tasks", on_result=None):
+    """``[fn(*args) for args in arglist]``, in this process or on dask workers.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (workers import it by name); it should return plain data
+        and report its own failures in it rather than raise.
+    arglist : sequence of tuple
+        Arguments of each call.
+    jobs : int, default 1
+        ``1``: in this process, without dask; ``N > 1``: a local cluster of ``N`` workers;
+        ``0``: one worker per core.
+    scheduler : str, optional
+        Address of an existing dask scheduler (overrides ``jobs``).
+    client : distributed.Client, optional
+        An open client to use (overrides ``jobs`` and ``scheduler``).
+    progress : bool
+        Show the progress (a bar on a terminal, plain lines in a log).
+    desc : str
+        Label of the progress display.
+    on_result : callable, optional
+        ``on_result(index, result)`` as each call finishes (in the order they finish).
+
+    Returns
+    -------
+    list
+        The results in the order of ``arglist``.
+    """
+    arglist = list(arglist)
+    results = [None] * len(arglist)
+    bar = progress_bar(len(arglist), desc, enabled=progress)
+    try:
+        if client is None and scheduler is None and (resolve_jobs(jobs) == 1 or len(arglist) < 2):
+            for i, args in enumerate(arglist):
+                results[i] = _call(fn, args)
+                if on_result is not None:
+                    on_result(i, results[i])
+                bar.update()
+            return results
+        if client is not None:
+            _gather(client, fn, arglist, results, bar, on_result)
+        else:
+            with dask_client(min(resolve_jobs(jobs), len(arglist)), scheduler) as cl:
+                _gather(cl, fn, arglist, results, bar, on_result)
+        return results
+    finally:
+        bar.close()
+
+
+def _gather(client, fn, arglist, results, bar, on_result):
+    from distributed import as_completed
+
+    futures = [client.submit(_call, fn, args, pure=False) for args in arglist]
+    index = {f.key: i for i, f in enumerate(futures)}
+    for fut in as_completed(futures):
+        i = index[fut.key]
+        results[i] = fut.result()
+        fut.release()
+        if on_result is not None:
+            on_result(i, results[i])
+        bar.update()
