@@ -12,7 +12,13 @@
   (``R_0``, residual flexibility) and below (``R_2 / w^2``, residual mass).  The
   coefficients enter linearly and are eliminated (variable projection); only
   ``(w_r, zeta)`` are found by :func:`scipy.optimize.least_squares`, from a peak-pick /
-  half-power start.  Points are weighted by the coherence.
+  half-power start.  Points are weighted by the coherence.  Every candidate peak is first
+  checked by a stabilisation test: a common-denominator rational fraction
+  ``B(u) / A(u)`` (``u`` the band-normalised ``i w``) is fitted in its band at model
+  orders 1 to ``max_order``; a resonance gives the same pole at every order, a noise
+  spike or an anti-resonance ripple does not.  Only peaks whose pole is stable, whose
+  band is coherent and whose SDOF fit is physical are trusted; the lowest trusted peaks
+  are the modes.
 * :func:`modal_frf` -- the closed-form FRF of a modal model (for tests and plots).
 * :func:`simulate_modal_response` -- the response of a linear, modally damped structure
   to a sampled force by modal superposition, each mode discretised *exactly* for a
@@ -74,6 +80,9 @@ class FRFEstimate:
         Number of segments averaged.
     output : str
         Response quantity: "acceleration", "velocity" or "displacement".
+    force_psd : ndarray, shape (n_f,), optional
+        Auto-spectrum of the force [N^2/Hz]; :func:`fit_modes` searches peaks only where
+        the force excites the structure.
     """
 
     frequency_hz: np.ndarray
@@ -83,9 +92,26 @@ class FRFEstimate:
     nperseg: int
     n_averages: int
     output: str = "acceleration"
+    force_psd: np.ndarray | None = None
+
+    def excited_range(self, level: float = 1e-2) -> tuple | None:
+        """``(f_lo, f_hi)`` [Hz] where the force spectrum is within ``level`` of its median.
+
+        ``None`` when the force spectrum is unknown.
+        """
+        if self.force_psd is None:
+            return None
+        f, S = self.frequency_hz, self.force_psd
+        pos = f > 0
+        ok = pos & (S >= level * np.median(S[pos]))
+        if not np.any(ok):
+            return None
+        return float(f[ok][0]), float(f[ok][-1])
 
     def __post_init__(self):
-        for name in ("frequency_hz", "H", "coherence"):
+        for name in ("frequency_hz", "H", "coherence", "force_psd"):
+            if getattr(self, name) is None:
+                continue
             a = np.array(getattr(self, name))
             a.setflags(write=False)
             object.__setattr__(self, name, a)
@@ -174,7 +200,7 @@ def h1_estimate(
     coh = np.abs(Sfx) ** 2 / np.maximum(Sff * Sxx, tiny)
     step = nperseg - noverlap
     n_avg = 1 + (f.size - nperseg) // step
-    return FRFEstimate(freq, H, np.clip(coh, 0.0, 1.0), float(fs), nperseg, int(n_avg), output)
+    return FRFEstimate(freq, H, np.clip(coh, 0.0, 1.0), float(fs), nperseg, int(n_avg), output, Sff)
 
 
 # ----------------------------------------------------------------------------------
@@ -235,6 +261,16 @@ class ModalFit:
         Relative rms misfit in each band (``||H - H_fit|| / ||H||``, weighted).
     output : str
         Response quantity of the FRF that was fitted.
+    trusted : ndarray of bool, shape (n_modes,)
+        Whether each mode passed the stabilisation, coherence and fit checks (explicit
+        bands are fitted whatever the checks say; the flag tells the result).
+    stable_orders : ndarray of int, shape (n_modes,)
+        Model orders (of ``max_order``) at which the mode's pole was stable.
+    max_order : int
+        Highest model order of the stabilisation check.
+    candidates : tuple of dict
+        Every peak examined by the automatic picking: ``frequency_hz``, ``coherence``
+        (band median), ``stable_orders``, ``trusted`` and the ``reason`` it was not.
     """
 
     frequencies_hz: np.ndarray
@@ -243,12 +279,23 @@ class ModalFit:
     bands_hz: np.ndarray
     fit_errors: np.ndarray
     output: str = "acceleration"
+    trusted: np.ndarray | None = None
+    stable_orders: np.ndarray | None = None
+    max_order: int = 0
+    candidates: tuple = ()
 
     def __post_init__(self):
-        for name in ("frequencies_hz", "damping_ratios", "modal_constants", "bands_hz", "fit_errors"):
+        n = np.size(self.frequencies_hz)
+        if self.trusted is None:
+            object.__setattr__(self, "trusted", np.ones(n, dtype=bool))
+        if self.stable_orders is None:
+            object.__setattr__(self, "stable_orders", np.zeros(n, dtype=int))
+        for name in ("frequencies_hz", "damping_ratios", "modal_constants", "bands_hz", "fit_errors", "trusted",
+                     "stable_orders"):
             a = np.array(getattr(self, name))
             a.setflags(write=False)
             object.__setattr__(self, name, a)
+        object.__setattr__(self, "candidates", tuple(dict(c) for c in self.candidates))
 
     def synthesize(self, frequency_hz) -> np.ndarray:
         """FRF of the fitted modes alone (no residual terms), in the fitted output."""
@@ -265,14 +312,26 @@ class ModalFit:
             "bands_hz": [[float(a), float(b)] for a, b in self.bands_hz],
             "fit_errors": [float(v) for v in self.fit_errors],
             "output": self.output,
+            "trusted": [bool(v) for v in self.trusted],
+            "stable_orders": [int(v) for v in self.stable_orders],
+            "max_order": int(self.max_order),
+            "candidates": [dict(c) for c in self.candidates],
         }
 
     def report(self) -> str:
-        lines = ["mode  f [Hz]     zeta [%]  band [Hz]           misfit"]
-        for i, (f, z, (a, b), e) in enumerate(
-            zip(self.frequencies_hz, self.damping_ratios, self.bands_hz, self.fit_errors)
+        lines = ["mode  f [Hz]     zeta [%]  band [Hz]           misfit    stable  trusted"]
+        for i, (f, z, (a, b), e, s, t) in enumerate(
+            zip(self.frequencies_hz, self.damping_ratios, self.bands_hz, self.fit_errors, self.stable_orders,
+                self.trusted)
         ):
-            lines.append(f"{i + 1:4d}  {f:9.3f}  {100 * z:8.3f}  {a:8.2f}-{b:8.2f}  {e:8.2e}")
+            stable = f"{s}/{self.max_order}" if self.max_order else "-"
+            lines.append(f"{i + 1:4d}  {f:9.3f}  {100 * z:8.3f}  {a:8.2f}-{b:8.2f}  {e:8.2e}  {stable:>6}  "
+                         f"{'yes' if t else 'NO'}")
+        rejected = sorted((c for c in self.candidates if not c["trusted"]), key=lambda c: -c.get("prominence", 0))
+        if rejected:
+            lines.append("most prominent peaks not trusted: "
+                         + "; ".join(f"{c['frequency_hz']:.2f} Hz ({c['reason']})" for c in rejected[:5])
+                         + (f"; {len(rejected) - 5} more" if len(rejected) > 5 else ""))
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -329,6 +388,72 @@ def _fit_band(f, Hd, weight, f0, z0):
     return wr / (2 * np.pi), z, coef[0] * scale, misfit
 
 
+def _band_poles(f, Hd, weight, order: int) -> np.ndarray:
+    """Poles [rad/s] of a common-denominator rational fraction of ``order`` fitted in a band.
+
+    ``H(u) = B(u) / A(u)`` with ``u = i (w - w_c) / w_h`` (the band mapped onto ``[-i, i]``
+    for conditioning), ``A`` monic of degree ``order`` and ``B`` of degree ``order``; the
+    linearised least-squares problem ``B(u_k) - H_k A(u_k) = 0`` is solved directly
+    (complex coefficients: the band need not be symmetric about zero frequency).  A pole
+    ``r`` of ``A`` in ``u`` is ``s = i w_c + w_h r`` in the Laplace variable.
+    """
+    om = 2 * np.pi * np.asarray(f, dtype=float)
+    wc, wh = 0.5 * (om[0] + om[-1]), 0.5 * (om[-1] - om[0])
+    u = 1j * (om - wc) / wh
+    V = u[:, None] ** np.arange(order + 1)
+    y = Hd / np.max(np.abs(Hd))
+    sw = np.sqrt(weight)[:, None]
+    M = np.hstack([V, -y[:, None] * V[:, :order]]) * sw
+    theta, *_ = np.linalg.lstsq(M, (y * u**order) * sw[:, 0], rcond=None)
+    a = np.concatenate([theta[order + 1:], [1.0]])
+    if not np.all(np.isfinite(a)):
+        return np.empty(0, dtype=complex)
+    return 1j * wc + wh * np.roots(a[::-1])
+
+
+def _stable_orders(f, Hd, weight, f_ref, z_ref, max_order, freq_tol, damping_tol) -> int:
+    """Number of model orders ``1..max_order`` that hold a pole matching ``(f_ref, z_ref)``.
+
+    At each order the poles of :func:`_band_poles` are computed; the order counts when
+    one of them is physical (``zeta > 0``) and within ``freq_tol`` (relative) of
+    ``f_ref`` [Hz] and ``damping_tol`` (relative) of the damping ratio ``z_ref``.  A
+    resonance is found at (nearly) every order; the extra poles a higher order adds to
+    fit noise wander from order to order and match nothing.
+    """
+    n_ok = 0
+    for n in range(1, int(max_order) + 1):
+        p = _band_poles(f, Hd, weight, n)
+        if p.size == 0:
+            continue
+        wn = np.abs(p)
+        z = -p.real / np.maximum(wn, np.finfo(float).tiny)
+        match = (z > 0) & (np.abs(wn / (2 * np.pi * f_ref) - 1) <= freq_tol) & (np.abs(z / z_ref - 1) <= damping_tol)
+        n_ok += bool(np.any(match))
+    return n_ok
+
+
+def _auto_bands(f, peaks_hz, band_fraction):
+    """Fit band of each peak: +-band_fraction, cut halfway (geometrically) to its neighbours."""
+    bands = []
+    for i, fk in enumerate(peaks_hz):
+        lo, hi = fk * (1 - band_fraction), fk * (1 + band_fraction)
+        if i > 0:
+            lo = max(lo, np.sqrt(peaks_hz[i - 1] * fk))
+        if i < len(peaks_hz) - 1:
+            hi = min(hi, np.sqrt(peaks_hz[i + 1] * fk))
+        bands.append((lo, hi))
+    return bands
+
+
+def _receptance_band(f, H, weight, lo, hi, p, min_points=8):
+    sel = (f >= lo) & (f <= hi) & (f > 0)
+    n = int(np.count_nonzero(sel))
+    if n < min_points:
+        return None
+    fb = f[sel]
+    return fb, H[sel] / (1j * 2 * np.pi * fb) ** p, weight[sel], sel
+
+
 def fit_modes(
     frf,
     n_modes: int | None = None,
@@ -340,23 +465,44 @@ def fit_modes(
     channel: int = 0,
     use_coherence: bool = True,
     min_coherence: float = 0.8,
+    max_order: int = 8,
+    min_stable: float = 0.75,
+    freq_tol: float = 2e-3,
+    damping_tol: float = 0.5,
+    max_candidates: int = 40,
 ) -> ModalFit:
     """Fit natural frequencies and damping ratios around the peaks of an FRF.
+
+    Automatic picking (no ``bands``) examines the most prominent peaks of ``|H|`` in the
+    search range and trusts a peak when
+
+    * its band is coherent: the median coherence over the band is at least
+      ``min_coherence`` (the coherence *at* a lightly damped resonance dips by leakage,
+      so the band median is used, not the peak value);
+    * its pole is stable: rational fractions of orders ``1..max_order`` fitted in the
+      band put a physical pole within ``freq_tol`` in frequency and ``damping_tol`` in
+      damping of their median at ``min_stable`` of the orders or more;
+    * its SDOF fit is physical: damping ratio below 0.2, resonance inside the band.
+
+    The ``n_modes`` lowest trusted peaks are the modes (the first modes of the
+    structure, not the loudest).  The examined peaks and the reason each untrusted one
+    was refused are in :attr:`ModalFit.candidates`.
 
     Parameters
     ----------
     frf : FRFEstimate or tuple (frequency_hz, H[, coherence])
         The FRF.  For a multi-output estimate ``channel`` selects the row.
     n_modes : int, optional
-        Number of peaks to fit (the most prominent, in frequency order).  Required
-        unless ``bands`` is given.
+        Number of modes to fit.  Required unless ``bands`` is given.
     bands : sequence of (f_lo, f_hi), optional
-        Explicit fit bands [Hz], one per mode.
+        Explicit fit bands [Hz], one per mode (fitted whatever the checks say;
+        :attr:`ModalFit.trusted` tells the result).
     f_range : (f_lo, f_hi), optional
-        Search peaks only in this range [Hz].
+        Search peaks only in this range [Hz]; default where the force spectrum of an
+        :class:`FRFEstimate` is within 20 dB of its median (the whole axis otherwise).
     band_fraction : float
         Half-width of an automatic band relative to the peak frequency; bands are also
-        cut halfway (geometrically) to the neighbouring peaks.
+        cut halfway (geometrically) to the neighbouring trusted peaks.
     output : str, optional
         Response quantity; default the estimate's ``output`` ("acceleration" for a tuple).
     channel : int
@@ -364,8 +510,15 @@ def fit_modes(
     use_coherence : bool
         Weight points by the coherence.
     min_coherence : float
-        Automatic peak picking ignores peaks whose coherence is below this (noise
-        spikes at anti-resonances); 0 disables the check.
+        Lowest median coherence of a trusted peak's band; 0 disables the check.
+    max_order : int
+        Highest model order of the stabilisation check (0 disables it).
+    min_stable : float
+        Fraction of the orders at which a trusted pole must be stable.
+    freq_tol, damping_tol : float
+        Relative stability tolerances on the pole's frequency and damping ratio.
+    max_candidates : int
+        Most prominent peaks examined.
 
     Returns
     -------
@@ -374,11 +527,21 @@ def fit_modes(
     Raises
     ------
     IdentificationError
-        Fewer peaks than asked for, or too few points in a band.
+        Fewer trusted peaks than asked for, or too few points in a band.
+
+    Examples
+    --------
+    >>> f = np.linspace(1.0, 300.0, 6000)
+    >>> H = modal_frf(f, 2 * np.pi * np.array([30.0, 150.0]), 0.002, [0.2, 0.4], [1.0, -0.8])
+    >>> fit = fit_modes((f, H), 2)
+    >>> np.round(fit.frequencies_hz, 3), bool(fit.trusted.all())
+    (array([ 30., 150.]), True)
     """
     if isinstance(frf, FRFEstimate):
         f, H, coh = frf.frequency_hz, frf.H, frf.coherence
         output = frf.output if output is None else output
+        if f_range is None and bands is None:
+            f_range = frf.excited_range()
     else:
         f, H, *rest = frf
         coh = rest[0] if rest else None
@@ -391,57 +554,83 @@ def fit_modes(
         coh = None if coh is None else np.asarray(coh)[channel]
     if H.shape != f.shape:
         raise IdentificationError(f"FRF has {H.shape[-1]} points, frequency axis {f.size}")
-    weight = np.ones_like(f) if (coh is None or not use_coherence) else np.clip(np.asarray(coh, float), 1e-3, 1.0)
+    if not np.all(np.isfinite(H)):
+        raise IdentificationError("FRF has non-finite values")
+    coh = None if coh is None else np.asarray(coh, dtype=float)
+    weight = np.ones_like(f) if (coh is None or not use_coherence) else np.clip(coh, 1e-3, 1.0)
     usable = f > 0
     if f_range is not None:
         usable &= (f >= f_range[0]) & (f <= f_range[1])
-    mag = np.abs(H)
+    n_ord = max(int(max_order), 0)
 
+    def fit_and_check(lo, hi):
+        """SDOF fit of a band and its checks: (fit, trusted, reason, coherence, stable orders)."""
+        band = _receptance_band(f, H, weight, lo, hi, p)
+        if band is None:
+            return None, False, "too few points in band", float("nan"), 0
+        fb, Hd, wb, sel = band
+        k = int(np.argmax(np.abs(Hd)))
+        fit = _fit_band(fb, Hd, wb, fb[k], _half_power_zeta(fb, np.abs(Hd), k) or 0.01)
+        fr, z = fit[0], fit[1]
+        c_med = float(np.median(coh[sel])) if coh is not None else 1.0
+        if coh is not None and min_coherence > 0 and c_med < min_coherence:
+            return fit, False, f"band coherence {c_med:.2f} < {min_coherence:g}", c_med, 0
+        if not (z < 0.2 and fb[0] < fr < fb[-1]):
+            return fit, False, f"SDOF fit not physical (zeta {z:.3g}, f {fr:.5g} Hz)", c_med, 0
+        n_stable = 0
+        if n_ord:
+            n_stable = _stable_orders(fb, Hd, wb, fr, z, n_ord, freq_tol, damping_tol)
+            if n_stable < min_stable * n_ord:
+                return fit, False, f"pole stable at {n_stable}/{n_ord} orders", c_med, n_stable
+        return fit, True, "", c_med, n_stable
+
+    candidates = []
     if bands is None:
         if n_modes is None:
             raise ValueError("give n_modes or bands")
         idx = np.flatnonzero(usable)
-        logm = np.log(np.maximum(mag[idx], np.finfo(float).tiny))
+        logm = np.log(np.maximum(np.abs(H[idx]), np.finfo(float).tiny))
         peaks, props = scipy.signal.find_peaks(logm, prominence=0.5)
-        if coh is not None and min_coherence > 0:
-            ok = np.asarray(coh, float)[idx[peaks]] >= min_coherence
-            peaks, props = peaks[ok], {k: v[ok] for k, v in props.items()}
-        if peaks.size < n_modes:
+        keep = np.sort(np.argsort(props["prominences"])[::-1][:max(int(max_candidates), int(n_modes))])
+        pk_hz = f[idx[peaks[keep]]]
+        prominence = props["prominences"][keep]
+        trusted_hz = []
+        for lo_hi, fk, pr in zip(_auto_bands(f, pk_hz, band_fraction), pk_hz, prominence):
+            _, ok, reason, c_med, n_stable = fit_and_check(*lo_hi)
+            candidates.append({"frequency_hz": float(fk), "prominence": float(pr), "coherence": c_med,
+                               "stable_orders": int(n_stable), "trusted": bool(ok), "reason": reason})
+            if ok:
+                trusted_hz.append(float(fk))
+        if len(trusted_hz) < n_modes:
+            refused = sorted((c for c in candidates if not c["trusted"]), key=lambda c: -c["prominence"])
+            shown = "; ".join(f"{c['frequency_hz']:.2f} Hz: {c['reason']}" for c in refused[:5])
             raise IdentificationError(
-                f"found {peaks.size} resonance peaks (coherence >= {min_coherence}), {n_modes} were asked for; "
-                "give the bands explicitly or narrow f_range"
+                f"found {len(trusted_hz)} trusted resonance peaks"
+                + (f" ({', '.join(f'{v:.2f}' for v in trusted_hz)} Hz)" if trusted_hz else "")
+                + f", {n_modes} were asked for"
+                + (f"; most prominent refused: {shown}" if shown else "")
+                + "; give the bands explicitly, narrow f_range or lower min_coherence"
             )
-        best = np.sort(peaks[np.argsort(props["prominences"])[::-1][:n_modes]])
-        pk = idx[best]
-        bands = []
-        for i, k in enumerate(pk):
-            lo, hi = f[k] * (1 - band_fraction), f[k] * (1 + band_fraction)
-            if i > 0:
-                lo = max(lo, np.sqrt(f[pk[i - 1]] * f[k]))
-            if i < pk.size - 1:
-                hi = min(hi, np.sqrt(f[pk[i + 1]] * f[k]))
-            bands.append((lo, hi))
+        bands = _auto_bands(f, trusted_hz, band_fraction)[: int(n_modes)]
     bands = np.asarray(bands, dtype=float).reshape(-1, 2)
 
-    freqs, zetas, consts, errs = [], [], [], []
+    freqs, zetas, consts, errs, trusted, stable = [], [], [], [], [], []
     for lo, hi in bands:
-        sel = (f >= lo) & (f <= hi) & (f > 0)
-        if np.count_nonzero(sel) < 8:
+        fit, ok, _, _, n_stable = fit_and_check(lo, hi)
+        if fit is None:
             raise IdentificationError(
-                f"band {lo:.3g}-{hi:.3g} Hz has {np.count_nonzero(sel)} FRF points, at least 8 are needed; "
-                "use a finer resolution (longer nperseg) or a wider band"
+                f"band {lo:.3g}-{hi:.3g} Hz has {np.count_nonzero((f >= lo) & (f <= hi) & (f > 0))} FRF points, "
+                "at least 8 are needed; use a finer resolution (longer nperseg) or a wider band"
             )
-        fb = f[sel]
-        Hd = H[sel] / (1j * 2 * np.pi * fb) ** p  # to receptance
-        k = int(np.argmax(np.abs(Hd)))
-        z0 = _half_power_zeta(fb, np.abs(Hd), k) or 0.01
-        fr, z, A, e = _fit_band(fb, Hd, weight[sel], fb[k], z0)
+        fr, z, A, e = fit
         freqs.append(fr)
         zetas.append(z)
         consts.append(A)
         errs.append(e)
-    return ModalFit(np.array(freqs), np.array(zetas), np.array(consts), bands, np.array(errs), output)
-
+        trusted.append(ok)
+        stable.append(n_stable)
+    return ModalFit(np.array(freqs), np.array(zetas), np.array(consts), bands, np.array(errs), output,
+                    np.array(trusted, dtype=bool), np.array(stable, dtype=int), n_ord, tuple(candidates))
 
 # ----------------------------------------------------------------------------------
 # simulation by modal superposition
