@@ -1,0 +1,549 @@
+"""Backbone curves: amplitude-dependent natural frequency ``omega(a)`` and damping ratio ``zeta(a)``.
+
+Three sources, one result type (:class:`Backbone`):
+
+Identified single-mode model (:func:`model_backbone`)
+    ``q'' + h(q, q') = 0`` with ``h = sum_j theta_j phi_j(q, q')`` (any term library, any
+    coefficient following a polynomial amplitude law).  With first-harmonic balance (a
+    single nonlinear mode) the motion is ``q = a cos(th)``, ``q' = -a w sin(th)`` and the
+    Fourier coefficients of ``h`` over one period give the equivalent stiffness and
+    damping::
+
+        k_eq(a, w) =  1 / (pi a)   int_0^2pi h(a cos th, -a w sin th) cos th dth
+        c_eq(a, w) = -1 / (pi a w) int_0^2pi h(a cos th, -a w sin th) sin th dth
+
+    and the backbone ``w(a)^2 = k_eq(a, w)``, ``zeta(a) = c_eq / (2 w)``.  With
+    ``n_harmonics > 1`` the higher harmonics are kept: the periodic motion of
+    ``q'' + h(q, q') - xi q' = 0`` whose fundamental is ``a cos(w t)`` is solved for
+    ``w``, ``xi`` and the other harmonics (the extended periodic motion concept of
+    Krack 2015 for one coordinate), and ``zeta = xi / (2 w)``.  95 % bands come from
+    linear propagation of the parameter covariance through the Jacobian of
+    ``(w, zeta)`` with respect to the parameters (central differences).
+
+Stepped-sine records (:func:`equivalent_linearisation`, :func:`phase_resonance_points`)
+    The first harmonics ``X`` of the displacement and ``Q1`` of the force of one dwell
+    give the restoring force's first harmonic ``h1 = Q1 + w^2 X`` and the equivalent
+    complex stiffness ``h1 / X = k_eq + i D``.  The record's point is
+    ``omega_eq = sqrt(k_eq)``, ``zeta = D / (2 w omega_eq)``, at ``a = |X|``.  ``D`` is
+    ``c w`` for viscous damping and the same at any frequency for hysteretic damping, so
+    away from resonance the ratio carries an error of about ``|w / omega_eq - 1| / 2``;
+    the phase-resonance point of a force level (``k_eq = w^2``, the response in
+    quadrature with the force) has no such error and is interpolated between the dwells
+    on either side.
+
+Amplitudes ``a`` are first-harmonic amplitudes of the modal displacement.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ConvergenceError, IdentificationError
+from .terms import library
+
+__all__ = [
+    "Backbone",
+    "model_backbone",
+    "equivalent_linearisation",
+    "phase_resonance_points",
+    "parameter_vector",
+]
+
+#: Two-sided 95 % normal quantile used for the bands.
+Z95 = 1.959963984540054
+
+
+def _readonly(a):
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Backbone:
+    """``omega(a)`` and ``zeta(a)`` with standard errors and 95 % bands.
+
+    Attributes
+    ----------
+    amplitude : ndarray
+        First-harmonic amplitude ``a`` of the modal displacement.
+    omega : ndarray
+        Natural frequency at ``a`` [rad/s].
+    zeta : ndarray
+        Damping ratio at ``a``.
+    omega_stderr, zeta_stderr : ndarray
+        Standard errors (``nan`` when unknown).
+    source : str
+        ``"model"``, ``"stepped-sine"``, ``"phase-resonance"``, ``"ringdown"`` or ``"rig"``.
+    amplitude_stderr : ndarray
+        Standard error of ``a`` (measured points; zero for a model).
+    label : str
+        Free text (preload, force level ...).
+    meta : dict
+        Per-source extras (force level of each point, flags ...), JSON-safe.
+    """
+
+    amplitude: np.ndarray
+    omega: np.ndarray
+    zeta: np.ndarray
+    omega_stderr: np.ndarray
+    zeta_stderr: np.ndarray
+    source: str
+    amplitude_stderr: np.ndarray | None = None
+    label: str = ""
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        a = _readonly(np.atleast_1d(self.amplitude))
+        object.__setattr__(self, "amplitude", a)
+        for name in ("omega", "zeta", "omega_stderr", "zeta_stderr"):
+            v = _readonly(np.broadcast_to(np.asarray(getattr(self, name), float), a.shape))
+            object.__setattr__(self, name, v)
+        ase = np.zeros_like(a) if self.amplitude_stderr is None else self.amplitude_stderr
+        object.__setattr__(self, "amplitude_stderr", _readonly(np.broadcast_to(np.asarray(ase, float), a.shape)))
+
+    def __len__(self):
+        return int(self.amplitude.size)
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        return self.omega / (2 * np.pi)
+
+    @property
+    def omega_band(self) -> np.ndarray:
+        """95 % band of ``omega``: shape ``(2, n)`` (lower, upper)."""
+        return np.array([self.omega - Z95 * self.omega_stderr, self.omega + Z95 * self.omega_stderr])
+
+    @property
+    def zeta_band(self) -> np.ndarray:
+        """95 % band of ``zeta``: shape ``(2, n)``."""
+        return np.array([self.zeta - Z95 * self.zeta_stderr, self.zeta + Z95 * self.zeta_stderr])
+
+    def select(self, mask) -> "Backbone":
+        """The points where ``mask`` is true (meta lists of the same length are filtered too)."""
+        m = np.asarray(mask, bool)
+        meta = {k: ([x for x, keep in zip(v, m) if keep] if isinstance(v, list) and len(v) == m.size else v)
+                for k, v in self.meta.items()}
+        return Backbone(self.amplitude[m], self.omega[m], self.zeta[m], self.omega_stderr[m], self.zeta_stderr[m],
+                        self.source, self.amplitude_stderr[m], self.label, meta)
+
+    def sorted(self) -> "Backbone":
+        """The points in increasing amplitude."""
+        order = np.argsort(self.amplitude, kind="stable")
+        meta = {k: ([v[i] for i in order] if isinstance(v, list) and len(v) == order.size else v)
+                for k, v in self.meta.items()}
+        return Backbone(self.amplitude[order], self.omega[order], self.zeta[order], self.omega_stderr[order],
+                        self.zeta_stderr[order], self.source, self.amplitude_stderr[order], self.label, meta)
+
+    def decades(self) -> float:
+        """Amplitude range covered, in decades (``log10(max / min)``)."""
+        a = self.amplitude[self.amplitude > 0]
+        return float(np.log10(a.max() / a.min())) if a.size else 0.0
+
+    def summary(self) -> dict:
+        def lst(x):
+            return [None if not np.isfinite(v) else float(v) for v in x]
+
+        return {
+            "source": self.source,
+            "label": self.label,
+            "n_points": len(self),
+            "amplitude": lst(self.amplitude),
+            "amplitude_stderr": lst(self.amplitude_stderr),
+            "frequency_hz": lst(self.frequency_hz),
+            "omega": lst(self.omega),
+            "omega_stderr": lst(self.omega_stderr),
+            "zeta": lst(self.zeta),
+            "zeta_stderr": lst(self.zeta_stderr),
+            "decades": self.decades(),
+            **({"meta": self.meta} if self.meta else {}),
+        }
+
+    def report(self) -> str:
+        lines = [f"Backbone ({self.source}{', ' + self.label if self.label else ''}): {len(self)} points, "
+                 f"{self.decades():.2f} decades of amplitude",
+                 f"  {'a':>11} {'f [Hz]':>12} {'± (95%)':>10} {'zeta':>10} {'± (95%)':>10}"]
+        idx = range(len(self)) if len(self) <= 12 else np.unique(np.linspace(0, len(self) - 1, 12).astype(int))
+        for i in idx:
+            lines.append(f"  {self.amplitude[i]:11.4e} {self.frequency_hz[i]:12.6f} "
+                         f"{Z95 * self.omega_stderr[i] / (2 * np.pi):10.2g} {self.zeta[i]:10.5f} "
+                         f"{Z95 * self.zeta_stderr[i]:10.2g}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(self.report())}</pre>"
+
+    def plot(self, ax=None, **kwargs):
+        """Draw with :func:`jointid.report.backbone_plots.plot_backbone`; returns ``(fig, axes)``."""
+        from ..report.backbone_plots import plot_backbone
+
+        return plot_backbone(self, ax=ax, **kwargs)
+
+
+# ----------------------------------------------------------------------------------------
+# Backbone of an identified model
+# ----------------------------------------------------------------------------------------
+
+
+def parameter_vector(terms, coefficients, amplitude_laws=None):
+    """Flatten a model's parameters in the order the covariance of :func:`model_backbone` uses.
+
+    The coefficients of the terms without an amplitude law (library order), then the
+    polynomial coefficients ``p0, p1, ...`` of each amplitude law (library order).
+
+    Returns
+    -------
+    p : ndarray
+    names : list of str
+        ``"omega1^2"``, ``"k3"``, ``"c[0]"``, ``"c[1]"`` ...
+    """
+    lib = library(terms)
+    coefficients = np.asarray(coefficients, float)
+    laws = {lib[k].coefficient: np.atleast_1d(np.asarray(v, float)) for k, v in dict(amplitude_laws or {}).items()}
+    if coefficients.size != len(lib):
+        raise IdentificationError(f"{len(lib)} coefficients expected for {lib.names}, got {coefficients.size}")
+    p, names = [], []
+    for t, c in zip(lib, coefficients):
+        if t.coefficient not in laws:
+            p.append(float(c))
+            names.append(t.coefficient)
+    for t in lib:
+        if t.coefficient in laws:
+            for k, v in enumerate(laws[t.coefficient]):
+                p.append(float(v))
+                names.append(f"{t.coefficient}[{k}]")
+    return np.array(p), names
+
+
+def _unflatten(lib, p, law_sizes):
+    """Inverse of :func:`parameter_vector`: ``(base coefficients, {coefficient: poly})``."""
+    base = np.zeros(len(lib))
+    i = 0
+    for j, t in enumerate(lib):
+        if t.coefficient not in law_sizes:
+            base[j] = p[i]
+            i += 1
+    laws = {}
+    for t in lib:
+        if t.coefficient in law_sizes:
+            n = law_sizes[t.coefficient]
+            laws[t.coefficient] = p[i:i + n]
+            i += n
+    return base, laws
+
+
+def _theta_at(lib, base, laws, q_max):
+    theta = base.copy()
+    for name, poly in laws.items():
+        theta[lib.index(name)] = np.polynomial.polynomial.polyval(q_max, poly)
+    return theta
+
+
+def _first_harmonic(lib, theta, a, n_phase, w_guess):
+    """``(w, zeta)`` of the first-harmonic backbone at amplitude ``a`` (fixed point on ``w``)."""
+    th = 2 * np.pi * (np.arange(n_phase) + 0.5) / n_phase  # mid-points: no sample where q' = 0
+    c, s = np.cos(th), np.sin(th)
+    q = a * c
+    w = w_guess
+    for _ in range(100):
+        h = lib.restoring_force(q, -a * w * s, theta)
+        k_eq = 2.0 * np.mean(h * c) / a
+        if not k_eq > 0:
+            raise IdentificationError(
+                f"the model has no oscillation at amplitude {a:.4g}: equivalent stiffness {k_eq:.4g} <= 0")
+        w_new = np.sqrt(k_eq)
+        done = abs(w_new - w) <= 1e-15 * w_new
+        w = w_new
+        if done:
+            break
+    h = lib.restoring_force(q, -a * w * s, theta)
+    c_eq = -2.0 * np.mean(h * s) / (a * w)
+    return w, c_eq / (2 * w)
+
+
+def _epmc_sdof(lib, theta_of, a, n_harmonics, w0, xi0, n_time):
+    """Multi-harmonic periodic motion of ``q'' + h - xi q' = 0`` with fundamental ``a cos(w t)``.
+
+    ``theta_of(q_max)`` gives the coefficients (amplitude laws closed on the solution's own
+    ``max |q|``).  Returns ``(w, zeta, q_max)``.
+    """
+    H = int(n_harmonics)
+    tau = 2 * np.pi * np.arange(n_time) / n_time
+    k = np.arange(1, H + 1)
+    C = np.cos(np.outer(tau, k))
+    S = np.sin(np.outer(tau, k))
+
+    def unpack(x):  # unknowns scaled: harmonics by a, w and xi by w0
+        a0 = a * x[0]
+        ak = a * np.concatenate([[1.0], x[1:H]])
+        bk = a * np.concatenate([[0.0], x[H:2 * H - 1]])
+        return a0, ak, bk, w0 * x[-2], w0 * x[-1]
+
+    def motion(x):
+        a0, ak, bk, w, xi = unpack(x)
+        q = a0 + C @ ak + S @ bk
+        v = w * (S @ (-k * ak) + C @ (k * bk))
+        acc = -(w**2) * (C @ (k**2 * ak) + S @ (k**2 * bk))
+        return q, v, acc
+
+    qmax = [a]
+
+    def residual(x):
+        q, v, acc = motion(x)
+        theta = theta_of(qmax[0])
+        r = acc + lib.restoring_force(q, v, theta) - w0 * x[-1] * v
+        out = np.empty(2 * H + 1)
+        out[0] = np.mean(r)
+        out[1::2] = 2 * (C.T @ r) / n_time
+        out[2::2] = 2 * (S.T @ r) / n_time
+        return out / (w0**2 * a)
+
+    x = np.zeros(2 * H + 1)
+    x[-2], x[-1] = 1.0, xi0 / w0
+    eye = 1e-7 * np.eye(x.size)
+    for _ in range(50):  # Newton (difference Jacobian), the amplitude-law closure updated each step
+        q, _, _ = motion(x)
+        qmax[0] = float(np.max(np.abs(q)))
+        r = residual(x)
+        J = np.column_stack([(residual(x + e) - residual(x - e)) / 2e-7 for e in eye])
+        step = np.linalg.solve(J, -r)
+        x = x + step
+        if np.max(np.abs(step)) < 1e-13:
+            break
+    else:
+        raise ConvergenceError(f"backbone harmonic balance at amplitude {a:.4g} did not converge "
+                               f"(residual {np.max(np.abs(residual(x))):.3g})")
+    w, xi = w0 * x[-2], w0 * x[-1]
+    return w, xi / (2 * w), qmax[0]
+
+
+def model_backbone(terms, coefficients, amplitudes, *, amplitude_laws=None, covariance=None, n_harmonics=1,
+                   n_phase=256, label="") -> Backbone:
+    """Backbone of an identified single-mode model ``q'' + h(q, q') = Q``.
+
+    Parameters
+    ----------
+    terms : TermLibrary or str
+        The restoring-force terms (``"q + -q^3 + q'"`` ...); the term ``q`` is needed.
+    coefficients : array_like
+        One value per term (ignored for a term with an amplitude law).
+    amplitudes : array_like
+        First-harmonic amplitudes ``a`` of ``q`` at which to evaluate.
+    amplitude_laws : mapping, optional
+        ``{coefficient or term name: (p0, p1, ...)}``: that coefficient is
+        ``p0 + p1 q_max + ...`` (``q_max = a`` at first order).
+    covariance : array_like, optional
+        Covariance of the parameter vector of :func:`parameter_vector` (coefficients
+        without a law, then the law polynomials).  Without it the bands are ``nan``.
+    n_harmonics : int
+        1: first-harmonic balance (closed form above).  More: the multi-harmonic
+        periodic motion with the damping replaced by ``xi q'`` (module docstring).
+    n_phase : int
+        Phase samples of one period.
+    label : str
+
+    Returns
+    -------
+    Backbone
+
+    Examples
+    --------
+    >>> b = model_backbone("q + -q^3 + q'", [100.0**2, 1e6, 2.0], [0.0, 0.01])
+    >>> [round(float(w), 4) for w in b.omega]          # sqrt(w1^2 - 3/4 k3 a^2)
+    [100.0, 99.6243]
+    >>> [round(float(z), 6) for z in b.zeta]           # c / (2 w)
+    [0.01, 0.010038]
+    """
+    lib = library(terms)
+    if "q" not in lib.names:
+        raise IdentificationError(f"a backbone needs the linear term 'q' in the model; got {lib.names}")
+    a = np.atleast_1d(np.asarray(amplitudes, float))
+    if a.ndim != 1 or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise IdentificationError(f"amplitudes must be finite and >= 0, got {amplitudes!r}")
+    laws = {lib[k].coefficient: np.atleast_1d(np.asarray(v, float)) for k, v in dict(amplitude_laws or {}).items()}
+    p, names = parameter_vector(lib, coefficients, laws)
+    sizes = {k: v.size for k, v in laws.items()}
+    H = int(n_harmonics)
+    n_time = max(int(n_phase), 8 * (H + 1))
+
+    def evaluate(pv):
+        base, lw = _unflatten(lib, pv, sizes)
+        w = np.empty(a.size)
+        z = np.empty(a.size)
+        w_prev = np.sqrt(max(base[lib.index("q")] if "omega1^2" not in lw else lw["omega1^2"][0], 1e-300))
+        for i, ai in enumerate(a):
+            if ai == 0:  # the linear limit
+                th = _theta_at(lib, base, lw, 0.0)
+                w[i] = np.sqrt(th[lib.index("q")])
+                z[i] = (th[lib.index("q'")] if "q'" in lib.names else 0.0) / (2 * w[i])
+                continue
+            if H <= 1:
+                w[i], z[i] = _first_harmonic(lib, _theta_at(lib, base, lw, ai), ai, n_time, w_prev)
+            else:
+                w1, z1 = _first_harmonic(lib, _theta_at(lib, base, lw, ai), ai, n_time, w_prev)
+                w[i], z[i], _ = _epmc_sdof(lib, lambda qm: _theta_at(lib, base, lw, qm), ai, H, w1, 2 * z1 * w1,
+                                           n_time)
+            w_prev = w[i]
+        return w, z
+
+    w, z = evaluate(p)
+    w_se = np.full(a.size, np.nan)
+    z_se = np.full(a.size, np.nan)
+    if covariance is not None:
+        cov = np.atleast_2d(np.asarray(covariance, float))
+        if cov.shape != (p.size, p.size):
+            raise IdentificationError(
+                f"covariance must be {p.size} x {p.size} for the parameters {names}, got {cov.shape}")
+        Jw = np.empty((a.size, p.size))
+        Jz = np.empty((a.size, p.size))
+        sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+        for j in range(p.size):
+            h = 1e-4 * sd[j] if sd[j] > 0 else 1e-7 * max(abs(p[j]), 1e-12)
+            dp = np.zeros(p.size)
+            dp[j] = h
+            wp, zp = evaluate(p + dp)
+            wm, zm = evaluate(p - dp)
+            Jw[:, j] = (wp - wm) / (2 * h)
+            Jz[:, j] = (zp - zm) / (2 * h)
+        w_se = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", Jw, cov, Jw), 0, None))
+        z_se = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", Jz, cov, Jz), 0, None))
+    return Backbone(a, w, z, w_se, z_se, "model", np.zeros_like(a), label,
+                    {"terms": list(lib.names), "parameters": names, "n_harmonics": H})
+
+
+# ----------------------------------------------------------------------------------------
+# Backbone points straight from stepped-sine records
+# ----------------------------------------------------------------------------------------
+
+
+def _fundamental(t, x, omega):
+    """First-harmonic complex amplitude ``X`` (``x ~ Re(X e^{i w t})``) with its standard error.
+
+    Least squares on ``[1, cos, sin]``; the standard error is that of the amplitude (the
+    residual RMS times ``sqrt(2 / n)`` for a record of many periods).
+    """
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    tau = t - t[0]
+    A = np.column_stack([np.ones_like(tau), np.cos(omega * tau), np.sin(omega * tau)])
+    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
+    r = x - A @ coef
+    sigma = np.sqrt(r @ r / max(x.size - 3, 1))
+    X = (coef[1] - 1j * coef[2]) * np.exp(-1j * omega * t[0])
+    return X, sigma * np.sqrt(2.0 / x.size)
+
+
+def equivalent_linearisation(signals_list, *, force_level=None, label="") -> Backbone:
+    """One backbone point per steady-state record: equivalent stiffness and damping at its amplitude.
+
+    Parameters
+    ----------
+    signals_list : sequence of StateSignals
+        Reduced records (:func:`jointid.signal.harmonics.steady_state_signals`): modal
+        force and acceleration, excitation frequency.
+    force_level : sequence, optional
+        Force level of each record (kept in ``meta``).
+    label : str
+
+    Returns
+    -------
+    Backbone
+        ``source = "stepped-sine"``; ``meta`` holds the excitation frequency, the phase of
+        the response and ``k_eq``, ``D`` of every record.  A record whose ``k_eq`` is not
+        positive gets ``nan``.
+
+    Notes
+    -----
+    The standard errors come from the noise left outside the fundamental (the residuals
+    of the force and of the acceleration around their first harmonic, which also holds
+    the higher harmonics: a conservative scale), propagated linearly.
+    """
+    a, w_eq, z, a_se, w_se, z_se = ([] for _ in range(6))
+    freqs, phases, keqs, Ds = [], [], [], []
+    for s in signals_list:
+        w = s.omega
+        Xa, sa = _fundamental(s.t, s.accel_measured, w)
+        Q1, sq = _fundamental(s.t, s.force, w)
+        X = -Xa / w**2
+        sx = sa / w**2
+        G = (Q1 + w**2 * X) / X  # k_eq + i D
+        k, D = G.real, G.imag
+        amp = abs(X)
+        # linear propagation: dG = dQ1 / X - Q1 dX / X^2 (the w^2 X part cancels)
+        gs = np.hypot(sq / amp, abs(Q1) * sx / amp**2)
+        a.append(amp)
+        a_se.append(sx)
+        freqs.append(s.frequency_hz)
+        phases.append(float(np.angle(X / Q1)))
+        keqs.append(float(k))
+        Ds.append(float(D))
+        if k > 0:
+            we = np.sqrt(k)
+            w_eq.append(we)
+            z.append(D / (2 * w * we))
+            w_se.append(gs / (2 * we) / np.sqrt(2))
+            z_se.append(np.hypot(gs / np.sqrt(2) / (2 * w * we), D * gs / np.sqrt(2) / (4 * w * we**3)))
+        else:
+            w_eq.append(np.nan), z.append(np.nan), w_se.append(np.nan), z_se.append(np.nan)
+    meta = {"frequency_hz": [float(f) for f in freqs], "phase": phases, "k_eq": keqs, "D": Ds}
+    if force_level is not None:
+        meta["force_level"] = [None if f is None else float(f) for f in force_level]
+    return Backbone(np.array(a), np.array(w_eq), np.array(z), np.array(w_se), np.array(z_se), "stepped-sine",
+                    np.array(a_se), label, meta)
+
+
+def phase_resonance_points(points: Backbone, force_level=None, label="") -> Backbone:
+    """Phase-resonance points (response in quadrature with the force) of each force level.
+
+    Within the records of one force level (``points.meta["force_level"]``, or all of
+    them), sorted by excitation frequency, the crossing of ``k_eq - w^2 = 0`` is located
+    by linear interpolation between the two dwells on either side; the amplitude,
+    ``omega`` (= the excitation frequency there) and ``zeta = D / (2 w^2)`` are
+    interpolated alike.
+
+    Parameters
+    ----------
+    points : Backbone
+        From :func:`equivalent_linearisation`.
+    force_level : sequence, optional
+        Overrides ``points.meta["force_level"]``.
+
+    Returns
+    -------
+    Backbone
+        ``source = "phase-resonance"``, one point per crossing (``meta["force_level"]``).
+    """
+    f = np.asarray(points.meta["frequency_hz"], float)
+    k = np.asarray(points.meta["k_eq"], float)
+    D = np.asarray(points.meta["D"], float)
+    levels = force_level if force_level is not None else points.meta.get("force_level", [None] * f.size)
+    levels = [None if v is None else float(v) for v in levels]
+    out = {"a": [], "w": [], "z": [], "ase": [], "wse": [], "zse": [], "level": []}
+    for lev in sorted(set(levels), key=lambda v: (v is None, v)):
+        idx = np.array([i for i, v in enumerate(levels) if v == lev], int)
+        idx = idx[np.argsort(f[idx])]
+        w = 2 * np.pi * f[idx]
+        g = k[idx] - w**2  # > 0 below resonance
+        for j in range(idx.size - 1):
+            if not (np.isfinite(g[j]) and np.isfinite(g[j + 1])) or g[j] * g[j + 1] > 0 or g[j] == g[j + 1]:
+                continue
+            s = g[j] / (g[j] - g[j + 1])
+            i0, i1 = idx[j], idx[j + 1]
+
+            def lerp(x):
+                return (1 - s) * x[i0] + s * x[i1]
+
+            wr = lerp(2 * np.pi * f)
+            out["a"].append(lerp(points.amplitude))
+            out["w"].append(wr)
+            out["z"].append(lerp(D) / (2 * wr**2))
+            out["ase"].append(lerp(points.amplitude_stderr))
+            out["wse"].append(lerp(points.omega_stderr))
+            out["zse"].append(lerp(points.zeta_stderr))
+            out["level"].append(lev)
+    return Backbone(np.array(out["a"]), np.array(out["w"]), np.array(out["z"]), np.array(out["wse"]),
+                    np.array(out["zse"]), "phase-resonance", np.array(out["ase"]), label,
+                    {"force_level": out["level"]})
