@@ -21,6 +21,7 @@ EPILOG = """examples:
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
   jointid modal structure.toml --out modal   # FE modes, updating report, mode-shape plots
+  jointid modal structure.toml --frf random.uff --response accel_42   # + modal fit of H1, trusted peaks
 """
 
 
@@ -98,7 +99,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frf", type=Path, help="a random-excitation record (CSV: time, force, responses) for H1 and a modal fit")
     p.add_argument("--response", default=None, help="response column of --frf (default: the first sensor)")
     p.add_argument("--modes", type=int, default=3, help="modes fitted in the FRF (default: %(default)s)")
+    p.add_argument("--bands", default=None,
+                   help="explicit fit bands in Hz, one per mode, e.g. \"24-29,140-175\" (default: automatic picking)")
+    p.add_argument("--f-range", nargs=2, type=float, metavar=("LO", "HI"), default=None,
+                   help="search peaks between LO and HI Hz (default: where the force spectrum excites the structure)")
+    p.add_argument("--order", type=int, default=8,
+                   help="highest model order of the pole stabilisation check (0: no check; default: %(default)s)")
+    p.add_argument("--nperseg", type=int, default=None,
+                   help="Welch segment length of H1 in samples (default: an eighth of the record)")
+    p.add_argument("--min-coherence", type=float, default=0.8,
+                   help="lowest median coherence of a trusted peak's band (default: %(default)s)")
     return parser
+
+
+def _parse_bands(text: str):
+    """``"24-29,140-175"`` -> ``[(24.0, 29.0), (140.0, 175.0)]``."""
+    bands = []
+    for part in text.split(","):
+        try:
+            lo, hi = (float(v) for v in part.strip().split("-"))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"--bands: expected LO-HI pairs in Hz separated by commas, got {part!r}")
+        if not 0 < lo < hi:
+            raise argparse.ArgumentTypeError(f"--bands: expected 0 < LO < HI, got {part!r}")
+        bands.append((lo, hi))
+    return bands
 
 
 def _modal(args) -> int:
@@ -124,20 +149,31 @@ def _modal(args) -> int:
 
         figures.append(("updating_residuals.png", plot_update_residuals(structure.update)[0]))
     if args.frf is not None:
+        from .errors import IdentificationError
         from .io.campaign import RecordSpec, read_record
         from .report.modal_plots import plot_frf
         from .signal.frf import fit_modes, h1_estimate
 
+        try:
+            bands = None if args.bands is None else _parse_bands(args.bands)
+        except argparse.ArgumentTypeError as exc:
+            raise IdentificationError(str(exc)) from None
         column = args.response or next(iter(structure.sensors))
         spec = RecordSpec(0, str(args.frf), args.frf.resolve(), None, None, None)
         rec = read_record(spec, required=("time", structure.force_column, column))
         fs = 1.0 / float(np.mean(np.diff(rec.time)))
-        frf = h1_estimate(rec.channels[structure.force_column], rec.channels[column], fs)
-        fit = fit_modes(frf, args.modes)
-        print(f"\nH1 of {column!r} in {args.frf}: modal fit")
-        for i, (f, z) in enumerate(zip(fit.frequencies_hz, fit.damping_ratios), 1):
-            print(f"  mode {i}: {f:.4f} Hz, damping ratio {100 * z:.3f} %")
-        summary["frf_fit"] = {"frequencies_hz": fit.frequencies_hz, "damping_ratios": fit.damping_ratios}
+        try:
+            frf = h1_estimate(rec.channels[structure.force_column], rec.channels[column], fs, nperseg=args.nperseg)
+            fit = fit_modes(frf, None if bands else args.modes, bands=bands, f_range=args.f_range,
+                            max_order=args.order, min_coherence=args.min_coherence)
+        except (IdentificationError, ValueError) as exc:
+            raise IdentificationError(f"{args.frf}: H1 of channel {column!r}: {exc}") from None
+        print(f"\nH1 of {column!r} in {args.frf}: {frf.report()}")
+        print(fit.report())
+        for i, (f, z, ok) in enumerate(zip(fit.frequencies_hz, fit.damping_ratios, fit.trusted), 1):
+            print(f"  mode {i}: {f:.4f} Hz, damping ratio {100 * z:.3f} %{'' if ok else ' (NOT trusted)'}")
+        summary["frf_fit"] = {"frequencies_hz": fit.frequencies_hz, "damping_ratios": fit.damping_ratios,
+                              "record": str(args.frf), "channel": column, "h1": frf.summary(), **fit.summary()}
         figures.append(("frf.png", plot_frf(frf, fit=fit)[0]))
     if args.out is not None:
         write_json(args.out / "modal.json", summary)
