@@ -20,9 +20,18 @@ EPILOG = """examples:
   jointid example --out example-out          # the seed paper's numerical example (Tables 1-3, Figs 4-6)
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
+  jointid study plan.toml --out study --jobs 2   # Monte Carlo study: bias, RMSE, std(z), coverage
   jointid modal structure.toml --out modal   # FE modes, updating report, mode-shape plots
   jointid modal structure.toml --frf random.uff --response accel_42   # + modal fit of H1, trusted peaks
 """
+
+
+def _add_parallel_options(p, what):
+    p.add_argument("--jobs", type=int, default=1,
+                   help=f"worker processes for the {what}: 1 runs them in this process, N > 1 on a local dask "
+                        "cluster, 0 one per core (default: %(default)s; results do not depend on it)")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help=f"run the {what} on an existing dask cluster, e.g. tcp://10.0.0.5:8786 (see docs/scale-out.md)")
 
 
 def _add_identify_options(p):
@@ -35,8 +44,7 @@ def _add_identify_options(p):
     p.add_argument("--force-gain", choices=("known", "unknown"), default="known",
                    help="'unknown' when the force column is e.g. a shaker voltage: the gain is identified "
                         "with the inertia term and omega1, k3, c are gain-free (default: %(default)s)")
-    p.add_argument("--jobs", type=int, default=1,
-                   help="worker processes for the records (0: one per core; default: %(default)s)")
+    _add_parallel_options(p, "records")
     p.add_argument("--trust-frequency", action="store_true",
                    help="use the manifest's frequency_hz as it is (by default it is checked on the force)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -109,6 +117,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Welch segment length of H1 in samples (default: an eighth of the record)")
     p.add_argument("--min-coherence", type=float, default=0.8,
                    help="lowest median coherence of a trusted peak's band (default: %(default)s)")
+
+    p = sub.add_parser("study", help="Monte Carlo study: simulated campaigns identified and compared with the truth",
+                       epilog="example: jointid study plan.toml --out study --jobs 2  (plan format: jointid.app.study)")
+    p.add_argument("plan", type=Path, help="study plan (TOML: a simulation configuration with [study], [vary], [grid])")
+    p.add_argument("--out", type=Path, required=True,
+                   help="output folder; campaigns already in its campaigns.jsonl are not run again")
+    _add_parallel_options(p, "campaigns")
+    p.add_argument("--no-report", action="store_true", help="skip report.html")
+    p.add_argument("--quiet", action="store_true", help="no progress and no table on stdout")
     return parser
 
 
@@ -190,13 +207,26 @@ def _identify(args) -> int:
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
         weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency, jobs=args.jobs,
-        progress=not args.quiet,
+        scheduler=args.scheduler, progress=not args.quiet,
     )
     write_results(result, args.out, figures=not args.no_figures)
     if not args.quiet:
         print(result.report())
         print(f"\nresults written to {args.out}")
     return EXIT_PARTIAL if result.failed else EXIT_OK
+
+
+def _study(args) -> int:
+    from .app.study import load_study_plan, run_study
+
+    plan = load_study_plan(args.plan)
+    res = run_study(plan, args.out, jobs=args.jobs, scheduler=args.scheduler, progress=not args.quiet,
+                    report=not args.no_report)
+    if not args.quiet:
+        print(res.report())
+        print(f"\n{res.n_run} campaigns run, {len(res.campaigns) - res.n_run} already in {args.out}; "
+              f"results written to {args.out}")
+    return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
 def _simulate(args) -> int:
@@ -235,7 +265,8 @@ def _example(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
-COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal}
+COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal,
+            "study": _study}
 
 
 def main(argv=None) -> int:

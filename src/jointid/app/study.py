@@ -1,0 +1,773 @@
+"""Monte Carlo studies of the method: simulated campaigns identified and compared with their truth.
+
+A study plan is a simulation configuration (the tables of :mod:`jointid.app.synthesis`:
+``[campaign]``, ``[[model]]``, ``[excitation]``, ``[acquisition]``) with three more tables::
+
+    [study]
+    name = "uncertainty calibration"
+    campaigns = 200                 # campaigns per grid point
+    seed = 2026                     # study seed: campaign i draws from child i of SeedSequence(seed)
+
+    [identify]                      # fields of IdentifySettings (optional)
+    terms = "q + -q^3 + q'"
+    damping_order = 2
+
+    [vary]                          # one draw per campaign; keys are dotted paths into the tables
+    "acquisition.noise" = { loguniform = [0.001, 0.02] }
+    "model.coefficients.k3" = { uniform = [3e6, 6e6], random_sign = true }
+    "excitation.force_levels" = { uniform = [0.4, 2.0], size = [2, 4] }   # 2 to 4 sorted levels
+    "acquisition.fs" = { uniform = [1500.0, 4000.0] }
+    "acquisition.periods" = { integers = [10, 40] }
+    "acquisition.write_frequency" = { choice = [true, false] }   # frequency given or not
+
+    [grid]                          # every combination is a grid point with `campaigns` campaigns
+    "excitation.n_frequencies" = [9, 21]
+
+Distributions: ``uniform = [low, high]``, ``loguniform = [low, high]``, ``normal = [mean, std]``,
+``integers = [low, high]`` (both included), ``choice = [v1, v2, ...]``; options ``random_sign``
+(a random sign for the value) and ``size`` (a sorted list of that many draws, or of a number of
+draws between ``[min, max]``).  A path through a list of tables (``model.omega1`` with several
+``[[model]]``) sets the key in each of them; an integer picks one (``model.1.omega1``) or one
+element of a list (``model.amplitude_laws.c.2``).
+
+Campaign ``i`` belongs to grid point ``i % n_points``; its seed is the integer state of child
+``i`` of ``numpy.random.SeedSequence(seed)``, from which its draws and its noise follow, so a
+campaign is reproduced from its seed alone and a study can be extended (more campaigns) or
+resumed (``campaigns.jsonl`` is appended to; campaigns already there are skipped).
+
+Each campaign is simulated by harmonic balance into a temporary folder, identified with
+:func:`~jointid.app.workflow.identify_campaign` and compared with its truth by
+:func:`comparison_rows`: estimate, standard error, 95 % interval and truth of every parameter
+that the results give.  :func:`study_statistics` turns the rows into bias, RMSE, std(z) with
+``z = (estimate - truth) / stderr`` and the 95 % coverage per parameter.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import html
+import json
+import os
+import tempfile
+import warnings
+from dataclasses import dataclass, field, fields, replace
+from itertools import product
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import JointidError, JointidWarning, ManifestError, unknown_key_message
+from .records import IdentifySettings
+
+__all__ = [
+    "StudyPlan",
+    "StudyResult",
+    "load_study_plan",
+    "run_campaign",
+    "run_study",
+    "campaign_truth",
+    "comparison_rows",
+    "study_statistics",
+    "read_campaign_lines",
+]
+
+RESULTS_FILE = "campaigns.jsonl"
+
+# keys of the simulation tables a [vary] or [grid] path may address (see jointid.app.synthesis)
+_TABLES = {
+    "campaign": ("name",),
+    "model": ("preload", "terms", "omega1", "k3", "coefficients", "amplitude_laws"),
+    "excitation": ("force_levels", "omega_start", "omega_stop", "n_frequencies", "frequencies_hz"),
+    "acquisition": ("fs", "periods", "t0", "noise", "seed", "write_frequency", "n_harmonics"),
+}
+_DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
+_OPTIONS = ("random_sign", "size")
+_RUN_ONLY = ("jobs", "scheduler", "progress")  # IdentifySettings fields a plan does not set (a campaign runs serially)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# plan
+
+
+def _settings_names() -> tuple:
+    return tuple(f.name for f in fields(IdentifySettings) if f.name not in _RUN_ONLY)
+
+
+def _check_path(path, source, what):
+    parts = path.split(".")
+    if parts[0] not in _TABLES:
+        raise ManifestError(f"{source}: [{what}] {path!r}: {unknown_key_message(parts[0], _TABLES, 'table')}")
+    rest = [p for p in parts[1:] if not p.lstrip("-").isdigit()]
+    if not rest:
+        raise ManifestError(f"{source}: [{what}] {path!r} names a table, not a value")
+    if rest[0] not in _TABLES[parts[0]]:
+        raise ManifestError(f"{source}: [{what}] {path!r}: {unknown_key_message(rest[0], _TABLES[parts[0]])}")
+
+
+def _check_distribution(path, spec, source):
+    where = f"{source}: [vary] {path!r}"
+    if not isinstance(spec, dict):
+        raise ManifestError(f"{where}: expected a table such as {{ uniform = [0.001, 0.02] }}, got {spec!r}")
+    kinds = [k for k in spec if k in _DISTRIBUTIONS]
+    for k in spec:
+        if k not in _DISTRIBUTIONS + _OPTIONS:
+            raise ManifestError(f"{where}: {unknown_key_message(k, _DISTRIBUTIONS + _OPTIONS)}")
+    if len(kinds) != 1:
+        raise ManifestError(f"{where}: exactly one of {', '.join(_DISTRIBUTIONS)} expected, got {kinds or 'none'}")
+    kind = kinds[0]
+    args = spec[kind]
+    if not isinstance(args, list) or not args:
+        raise ManifestError(f"{where}: {kind} needs a non-empty list, got {args!r}")
+    if kind != "choice":
+        if len(args) != 2 or not all(isinstance(a, (int, float)) and np.isfinite(a) for a in args):
+            raise ManifestError(f"{where}: {kind} needs two finite numbers, got {args!r}")
+        lo, hi = args
+        if kind == "loguniform" and not 0 < lo <= hi:
+            raise ManifestError(f"{where}: loguniform needs 0 < low <= high, got {args!r}")
+        if kind in ("uniform", "integers") and lo > hi:
+            raise ManifestError(f"{where}: {kind} needs low <= high, got {args!r}")
+        if kind == "normal" and hi < 0:
+            raise ManifestError(f"{where}: normal needs a non-negative standard deviation, got {hi!r}")
+    size = spec.get("size")
+    if size is not None:
+        ok = (isinstance(size, int) and size >= 1) or (
+            isinstance(size, list) and len(size) == 2 and all(isinstance(s, int) for s in size) and 1 <= size[0] <= size[1])
+        if not ok:
+            raise ManifestError(f"{where}: size must be a positive integer or [min, max], got {size!r}")
+
+
+def _draw(spec, rng):
+    kind = next(k for k in spec if k in _DISTRIBUTIONS)
+    args = spec[kind]
+    size = spec.get("size")
+    n = None
+    if size is not None:
+        n = int(size) if isinstance(size, int) else int(rng.integers(size[0], size[1] + 1))
+
+    def one(m):
+        if kind == "uniform":
+            v = rng.uniform(args[0], args[1], m)
+        elif kind == "loguniform":
+            v = np.exp(rng.uniform(np.log(args[0]), np.log(args[1]), m))
+        elif kind == "normal":
+            v = rng.normal(args[0], args[1], m)
+        elif kind == "integers":
+            v = rng.integers(int(args[0]), int(args[1]) + 1, m)
+        else:
+            return [args[int(j)] for j in rng.integers(0, len(args), m)]
+        if spec.get("random_sign"):
+            v = v * rng.choice((-1, 1), m)
+        return v.tolist()
+
+    values = one(1 if n is None else n)
+    if n is None:
+        return values[0]
+    return sorted(values)
+
+
+def _set_path(tables, path, value):
+    """Set ``value`` at a dotted path; a non-integer key applied to a list sets it in every element."""
+
+    def walk(node, parts):
+        key = parts[0]
+        if isinstance(node, list):
+            if key.lstrip("-").isdigit():
+                j = int(key)
+                if len(parts) == 1:
+                    node[j] = value
+                else:
+                    walk(node[j], parts[1:])
+            else:
+                for item in node:
+                    walk(item, parts)
+            return
+        if not isinstance(node, dict):
+            raise ManifestError(f"{path!r}: {key!r} is below a value, not a table")
+        if len(parts) == 1:
+            node[key] = value
+        else:
+            if key not in node:
+                node[key] = {}
+            walk(node[key], parts[1:])
+
+    try:
+        walk(tables, path.split("."))
+    except IndexError as exc:
+        raise ManifestError(f"{path!r}: index out of range") from exc
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """A Monte Carlo study: base simulation, draws, grid, identification settings.
+
+    Build one with :func:`load_study_plan` (TOML file) or :meth:`from_mapping` (a dict of the
+    same tables).  The plan is plain data: it travels to dask workers with each campaign.
+    """
+
+    name: str
+    campaigns: int
+    seed: int
+    simulation: dict = field(repr=False)  # campaign / model / excitation / acquisition tables
+    vary: tuple = ()  # (path, distribution table)
+    grid: tuple = ()  # (path, values)
+    settings: IdentifySettings = IdentifySettings()
+    source: str = "plan"
+
+    @classmethod
+    def from_mapping(cls, d: dict, source="plan") -> "StudyPlan":
+        """Parse the tables of a plan (see the module documentation)."""
+        if not isinstance(d, dict):
+            raise ManifestError(f"{source}: a study plan is a table, got {type(d).__name__}")
+        study = dict(d.get("study", {}))
+        for k in study:
+            if k not in ("name", "campaigns", "seed"):
+                raise ManifestError(f"{source}: [study] {unknown_key_message(k, ('name', 'campaigns', 'seed'))}")
+        try:
+            n = int(study.get("campaigns", 100))
+            seed = int(study.get("seed", 0))
+        except (TypeError, ValueError) as exc:
+            raise ManifestError(f"{source}: [study] campaigns and seed must be integers: {exc}") from exc
+        if n < 1:
+            raise ManifestError(f"{source}: [study] campaigns must be at least 1, got {n}")
+        if seed < 0:
+            raise ManifestError(f"{source}: [study] seed must be non-negative, got {seed}")
+        ident = dict(d.get("identify", {}))
+        for k in ident:
+            if k not in _settings_names():
+                raise ManifestError(f"{source}: [identify] {unknown_key_message(k, _settings_names())}")
+        try:
+            settings = IdentifySettings(**ident)
+        except (TypeError, ValueError) as exc:
+            raise ManifestError(f"{source}: [identify] {exc}") from exc
+        for k in d:
+            if k not in ("study", "identify", "vary", "grid") + tuple(_TABLES):
+                raise ManifestError(f"{source}: {unknown_key_message(k, ('study', 'identify', 'vary', 'grid') + tuple(_TABLES), 'table')}")
+        simulation = {k: copy.deepcopy(d[k]) for k in _TABLES if k in d}
+        vary = tuple((str(p), dict(s)) if isinstance(s, dict) else (str(p), s) for p, s in dict(d.get("vary", {})).items())
+        for p, s in vary:
+            _check_path(p, source, "vary")
+            _check_distribution(p, s, source)
+        grid = []
+        for p, values in dict(d.get("grid", {})).items():
+            _check_path(p, source, "grid")
+            if not isinstance(values, list) or not values:
+                raise ManifestError(f"{source}: [grid] {p!r} needs a non-empty list of values, got {values!r}")
+            if p in dict(vary):
+                raise ManifestError(f"{source}: {p!r} is both in [vary] and in [grid]")
+            grid.append((str(p), list(values)))
+        plan = cls(str(study.get("name", "study")), n, seed, simulation, vary, tuple(grid), settings, source)
+        from .synthesis import load_simulation_config
+
+        load_simulation_config(plan.draw(0)[0], source=source)  # the first campaign's configuration must be valid
+        return plan
+
+    def mapping(self) -> dict:
+        """The plan's tables (JSON-safe), as :meth:`from_mapping` reads them."""
+        return {
+            "study": {"name": self.name, "campaigns": self.campaigns, "seed": self.seed},
+            "identify": {k: getattr(self.settings, k) for k in _settings_names()},
+            **copy.deepcopy(self.simulation),
+            "vary": {p: s for p, s in self.vary},
+            "grid": {p: v for p, v in self.grid},
+        }
+
+    @property
+    def fingerprint(self) -> str:
+        """A hash of everything that makes a campaign, except the number of campaigns."""
+        d = self.mapping()
+        d["study"].pop("campaigns")
+        text = json.dumps(d, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    @property
+    def points(self) -> list:
+        """The grid points: one dict ``{path: value}`` per combination (``[{}]`` without a grid)."""
+        if not self.grid:
+            return [{}]
+        paths = [p for p, _ in self.grid]
+        return [dict(zip(paths, combo)) for combo in product(*(v for _, v in self.grid))]
+
+    @property
+    def n_campaigns(self) -> int:
+        return self.campaigns * len(self.points)
+
+    def campaign_seed(self, index: int) -> int:
+        """Seed of campaign ``index``: the state of child ``index`` of ``SeedSequence(seed)``."""
+        child = np.random.SeedSequence(self.seed, spawn_key=(int(index),))
+        return int(child.generate_state(1, np.uint64)[0])
+
+    def draw(self, index: int):
+        """The simulation tables of campaign ``index``, its drawn values and its grid point.
+
+        Returns
+        -------
+        tables : dict
+            A simulation configuration for :func:`~jointid.app.synthesis.load_simulation_config`.
+        drawn : dict
+            ``{path: value}`` of the ``[vary]`` draws and the grid point.
+        point : int
+            Index of the grid point.
+        """
+        points = self.points
+        k = int(index) % len(points)
+        rng = np.random.default_rng(self.campaign_seed(index))
+        tables = copy.deepcopy(self.simulation)
+        drawn = {}
+        for path, value in points[k].items():
+            _set_path(tables, path, copy.deepcopy(value))
+            drawn[path] = value
+        for path, spec in self.vary:
+            drawn[path] = _draw(spec, rng)
+            _set_path(tables, path, drawn[path])
+        tables.setdefault("acquisition", {})
+        tables["acquisition"]["seed"] = int(rng.integers(0, 2**63 - 1))
+        return tables, drawn, k
+
+
+def load_study_plan(path) -> StudyPlan:
+    """Read a study plan (TOML); see the module documentation for its tables."""
+    from ..io.campaign import read_toml
+
+    return StudyPlan.from_mapping(read_toml(path, "study plan"), source=str(path))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# truth and comparisons
+
+
+def campaign_truth(config) -> dict:
+    """The true parameters of a simulated campaign (JSON-safe).
+
+    Parameters
+    ----------
+    config : SimulationConfig
+        As read by :func:`~jointid.app.synthesis.load_simulation_config`.
+
+    Returns
+    -------
+    dict
+        ``preloads``: per preload, the coefficients without an amplitude law and the amplitude
+        laws (``{name: [p0, p1, ...]}``); ``records``: per record (in the order the campaign
+        writes them) its preload, force level, true ``q_max`` and coefficients at that ``q_max``.
+    """
+    from .synthesis import simulate_steady_states
+
+    preloads = []
+    for preload, model in config.models:
+        names = model.terms.coefficient_names
+        preloads.append({
+            "preload": preload,
+            "coefficients": {n: v for n, v in zip(names, model.coefficients) if n not in model.amplitude_laws},
+            "laws": {n: list(p) for n, p in model.amplitude_laws.items()},
+        })
+    models = dict(config.models)
+    records = []
+    for preload, F, frf in simulate_steady_states(config):
+        model = models[preload]
+        for state in frf.states:
+            records.append({
+                "index": len(records), "preload": preload, "force_level": F, "q_max": float(state.q_max),
+                "coefficients": dict(zip(model.terms.coefficient_names, model.coefficients_at(state.q_max).tolist())),
+            })
+    return {"preloads": preloads, "records": records}
+
+
+def _finite(x):
+    return x is not None and isinstance(x, (int, float)) and np.isfinite(x)
+
+
+def _interval(ci, k=None):
+    """``(low, high)`` from a ``*_ci95`` value (a pair, or a list of pairs with ``k``)."""
+    if ci is None:
+        return None
+    try:
+        if k is not None:
+            ci = ci[k]
+        lo, hi = float(ci[0]), float(ci[1])
+    except (TypeError, IndexError, KeyError, ValueError):
+        return None
+    return (lo, hi) if np.isfinite(lo) and np.isfinite(hi) else None
+
+
+def _row(parameter, where, estimate, stderr, truth, ci=None) -> dict:
+    z = None
+    if _finite(estimate) and _finite(stderr) and stderr > 0:
+        z = (estimate - truth) / stderr
+    if not _finite(estimate):
+        covered = None
+    elif ci is not None:
+        covered = bool(ci[0] <= truth <= ci[1])
+    else:
+        covered = bool(abs(z) <= 1.96) if z is not None else None
+    return {"parameter": parameter, "where": where, "estimate": estimate if _finite(estimate) else None,
+            "stderr": stderr if _finite(stderr) else None, "ci95": list(ci) if ci else None, "truth": truth,
+            "z": z, "covered": covered}
+
+
+def _law_truth(pre, order):
+    """True damping-law coefficients ``c0..c_order`` (None when the true law has a higher order)."""
+    law = pre["laws"].get("c")
+    if law is None:
+        c = pre["coefficients"].get("c")
+        if c is None:
+            return None
+        law = [c]
+    law = list(law)
+    if any(v != 0 for v in law[order + 1:]):
+        return None
+    return (law + [0.0] * (order + 1))[: order + 1]
+
+
+def comparison_rows(summary: dict, truth: dict) -> list:
+    """Estimates of a campaign's results beside their true values.
+
+    Parameters
+    ----------
+    summary : dict
+        The content of ``results.json`` (:meth:`CampaignResult.summary`).
+    truth : dict
+        As returned by :func:`campaign_truth`.
+
+    Returns
+    -------
+    list of dict
+        One row per estimate that the results give and the truth defines: ``parameter``
+        (a label common to all campaigns, e.g. ``"groups.k3"``, ``"damping_law.c1"``,
+        ``"records.c_pooled"``, ``"models.omega1"``), ``where`` (group, preload or record),
+        ``estimate``, ``stderr``, ``ci95`` (``[low, high]`` or None), ``truth``, ``z`` and
+        ``covered`` (the interval contains the truth; without an interval ``|z| <= 1.96``).
+        Missing estimates (a failed group) give rows with ``estimate`` None.
+    """
+    pre = {str(p["preload"]): p for p in truth["preloads"]}
+    recs = {r["index"]: r for r in truth["records"]}
+    rows = []
+
+    def shared(p, name):
+        t = pre.get(str(p))
+        if t is None or name not in t["coefficients"]:
+            return None
+        return t["coefficients"][name]
+
+    def add_omega1_k3(section, entry, where, omega1_key="omega1", k3_key="k3"):
+        w2 = shared(entry.get("preload"), "omega1^2")
+        if w2 is not None and omega1_key in entry:
+            rows.append(_row(f"{section}.omega1", where, entry.get(omega1_key), entry.get(f"{omega1_key}_stderr"),
+                             float(np.sqrt(w2)), _interval(entry.get(f"{omega1_key}_ci95"))))
+        k3 = shared(entry.get("preload"), "k3")
+        if k3 is not None and entry.get(k3_key) is not None:
+            rows.append(_row(f"{section}.k3", where, entry.get(k3_key), entry.get(f"{k3_key}_stderr"), k3,
+                             _interval(entry.get(f"{k3_key}_ci95"))))
+
+    def add_law(section, where, preload, coefs, stderr, ci):
+        t = pre.get(str(preload))
+        if t is None or coefs is None:
+            return
+        true = _law_truth(t, len(coefs) - 1)
+        if true is None:
+            return
+        stderr = stderr or [None] * len(coefs)
+        for k, (v, s) in enumerate(zip(coefs, stderr)):
+            rows.append(_row(f"{section}.c{k}", where, v, s, true[k], _interval(ci, k)))
+
+    for g in summary.get("groups", []):
+        add_omega1_k3("groups", g, f"preload={g.get('preload')}, force_level={g.get('force_level')}")
+    for law in summary.get("damping_law", []):
+        add_law("damping_law", f"preload={law.get('preload')}", law.get("preload"), law.get("coefficients"),
+                law.get("stderr"), law.get("coefficients_ci95", law.get("ci95")))
+    for m in summary.get("models", []) or []:
+        where = f"preload={m.get('preload')}"
+        add_omega1_k3("models", m, where)
+        add_law("models.damping", where, m.get("preload"), m.get("damping_coefficients"), m.get("damping_stderr"),
+                m.get("damping_ci95"))
+    for r in summary.get("records", []):
+        t = recs.get(r.get("index"))
+        if t is None or r.get("status") != "ok":
+            continue
+        where = f"record {r['index']}"
+        c = t["coefficients"].get("c")
+        if c is not None and "c_pooled" in r:
+            rows.append(_row("records.c_pooled", where, r.get("c_pooled"), r.get("c_pooled_stderr"), c,
+                             _interval(r.get("c_pooled_ci95"))))
+        if c is not None and "c_stderr" in r:
+            rows.append(_row("records.c", where, r.get("c"), r.get("c_stderr"), c, _interval(r.get("c_ci95"))))
+        coefs, errs = r.get("coefficients") or {}, r.get("stderr") or {}
+        cis = r.get("coefficients_ci95") or r.get("ci95") or {}
+        for name, v in coefs.items():
+            if name in t["coefficients"]:
+                rows.append(_row(f"records.coefficients.{name}", where, v, errs.get(name), t["coefficients"][name],
+                                 _interval(cis.get(name) if isinstance(cis, dict) else None)))
+    return rows
+
+
+# ----------------------------------------------------------------------------------------------------------
+# one campaign
+
+
+def run_campaign(plan: StudyPlan, index: int) -> dict:
+    """Simulate, identify and compare campaign ``index`` of a plan; never raises for a bad campaign.
+
+    Returns
+    -------
+    dict
+        The campaign's line of ``campaigns.jsonl`` (JSON-safe): ``index``, ``seed``, ``plan``
+        (fingerprint), ``grid_point``, ``drawn`` (the values drawn), ``status`` (``"ok"`` or
+        ``"failed"``), ``error``, ``n_records``, ``n_failed`` and ``rows`` (:func:`comparison_rows`).
+    """
+    from ..io.results import to_jsonable
+    from .synthesis import load_simulation_config, simulate_campaign
+    from .workflow import identify_campaign
+
+    line = {"index": int(index), "seed": plan.campaign_seed(index), "plan": plan.fingerprint, "grid_point": None,
+            "drawn": None, "status": "failed", "error": None, "n_records": 0, "n_failed": 0, "rows": []}
+    try:
+        tables, drawn, point = plan.draw(index)
+        line.update(grid_point=point, drawn=to_jsonable(drawn))
+        config = load_simulation_config(tables, source=f"{plan.source} campaign {index}")
+        truth = campaign_truth(config)
+        settings = replace(plan.settings, jobs=1, scheduler=None, progress=False)
+        with tempfile.TemporaryDirectory(prefix="jointid-study-") as tmp:
+            simulate_campaign(config, Path(tmp) / "campaign")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                result = identify_campaign(Path(tmp) / "campaign", settings)
+            summary = to_jsonable(result.summary())
+        line.update(status="ok", n_records=summary["n_records"], n_failed=summary["n_failed"],
+                    rows=to_jsonable(comparison_rows(summary, truth)))
+    except JointidError as exc:
+        line["error"] = f"campaign {index}: {exc}"
+    except Exception as exc:  # noqa: BLE001 - one campaign must never lose the study
+        line["error"] = f"campaign {index}: unexpected {type(exc).__name__}: {exc}"
+    return line
+
+
+# ----------------------------------------------------------------------------------------------------------
+# statistics
+
+
+def _wilson(k, n, z=1.96):
+    if n == 0:
+        return (None, None)
+    p = k / n
+    den = 1 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (float(mid - half), float(mid + half))
+
+
+def study_statistics(lines) -> list:
+    """Bias, RMSE, std(z) and 95 % coverage per grid point and parameter.
+
+    Parameters
+    ----------
+    lines : iterable of dict
+        Campaign lines (:func:`run_campaign`), in any order (they are sorted by index, so the
+        statistics do not depend on the order in which campaigns finished).
+
+    Returns
+    -------
+    list of dict
+        ``grid_point``, ``parameter``, ``n`` (rows), ``n_missing`` (no estimate), ``bias``
+        (mean of estimate - truth), ``rmse``, ``rel_bias`` and ``rel_rmse`` (relative to
+        ``|truth|``, rows with a non-zero truth), ``n_z``, ``mean_z``, ``std_z``, ``coverage``
+        (fraction of rows whose interval holds the truth) with its Wilson 95 % interval
+        (``coverage_low``, ``coverage_high``).
+    """
+    groups = {}
+    for line in sorted(lines, key=lambda l: l["index"]):
+        for r in line.get("rows") or []:
+            groups.setdefault((line["grid_point"], r["parameter"]), []).append(r)
+    out = []
+    for (point, name) in sorted(groups, key=lambda k: (k[0], k[1])):
+        rows = groups[(point, name)]
+        ok = [r for r in rows if r["estimate"] is not None]
+        err = np.array([r["estimate"] - r["truth"] for r in ok], float)
+        rel = np.array([(r["estimate"] - r["truth"]) / abs(r["truth"]) for r in ok if r["truth"] != 0], float)
+        z = np.array([r["z"] for r in ok if r["z"] is not None], float)
+        cov = [r["covered"] for r in ok if r["covered"] is not None]
+        low, high = _wilson(sum(cov), len(cov))
+        out.append({
+            "grid_point": point,
+            "parameter": name,
+            "n": len(rows),
+            "n_missing": len(rows) - len(ok),
+            "bias": float(err.mean()) if err.size else None,
+            "rmse": float(np.sqrt(np.mean(err**2))) if err.size else None,
+            "rel_bias": float(rel.mean()) if rel.size else None,
+            "rel_rmse": float(np.sqrt(np.mean(rel**2))) if rel.size else None,
+            "n_z": int(z.size),
+            "mean_z": float(z.mean()) if z.size else None,
+            "std_z": float(z.std(ddof=1)) if z.size > 1 else None,
+            "coverage": float(np.mean(cov)) if cov else None,
+            "coverage_low": low,
+            "coverage_high": high,
+        })
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the study
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """A finished (or resumed and finished) study.
+
+    Attributes
+    ----------
+    name : str
+    plan : StudyPlan
+    campaigns : tuple of dict
+        The campaign lines, by index.
+    statistics : tuple of dict
+        :func:`study_statistics` of the campaigns.
+    n_run : int
+        Campaigns run by this call (the others were in the results file already).
+    """
+
+    name: str
+    plan: StudyPlan = field(repr=False)
+    campaigns: tuple = field(repr=False)
+    statistics: tuple = field(repr=False)
+    n_run: int = field(default=0, compare=False)
+
+    @property
+    def failed(self):
+        return [c for c in self.campaigns if c["status"] != "ok"]
+
+    def summary(self) -> dict:
+        """``study.json``: the plan, the grid points, the counts and the statistics (JSON-safe)."""
+        from ..io.results import to_jsonable
+
+        return to_jsonable({
+            "study": self.name,
+            "plan_fingerprint": self.plan.fingerprint,
+            "plan": self.plan.mapping(),
+            "grid_points": self.plan.points,
+            "n_campaigns": len(self.campaigns),
+            "n_failed": len(self.failed),
+            "errors": [c["error"] for c in self.failed[:20]],
+            "statistics": list(self.statistics),
+        })
+
+    def report(self) -> str:
+        from ..report.study_plots import statistics_table
+
+        head = (f"study {self.name!r}: {len(self.campaigns)} campaigns ({len(self.failed)} failed), "
+                f"plan {self.plan.fingerprint}")
+        lines = [head]
+        points = self.plan.points
+        for k, point in enumerate(points):
+            if len(points) > 1:
+                lines.append(f"\ngrid point {k}: " + ", ".join(f"{p} = {v}" for p, v in point.items()))
+            lines.append(statistics_table([s for s in self.statistics if s["grid_point"] == k]))
+        for c in self.failed[:10]:
+            lines.append(f"  failed: {c['error']}")
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+    def plot(self, grid_point=0, ax=None):
+        """std(z) and 95 % coverage per parameter (see :func:`jointid.report.study_plots.plot_calibration`)."""
+        from ..report.study_plots import plot_calibration
+
+        return plot_calibration([s for s in self.statistics if s["grid_point"] == grid_point], ax=ax)
+
+
+def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
+    """The campaign lines of a results file, by index.
+
+    A last line cut short (an interrupted run) is ignored; the file is cut back to its last
+    complete line so that appending continues cleanly.
+
+    Raises
+    ------
+    jointid.errors.ManifestError
+        A line that is not JSON (other than the last), or lines of another plan.
+    """
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    data = path.read_bytes()
+    end = data.rfind(b"\n") + 1
+    if end < len(data):
+        with open(path, "r+b") as fh:
+            fh.truncate(end)
+    out = {}
+    for n, text in enumerate(data[:end].decode("utf-8").splitlines(), 1):
+        if not text.strip():
+            continue
+        try:
+            line = json.loads(text)
+            index = int(line["index"])
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ManifestError(f"{path} [line {n}]: not a campaign line: {exc}") from exc
+        if plan is not None and line.get("plan") != plan.fingerprint:
+            raise ManifestError(
+                f"{path} [line {n}]: campaign {index} was made by another plan (fingerprint {line.get('plan')}, "
+                f"this plan {plan.fingerprint}); write the study to another folder or remove the file")
+        out[index] = line
+    return out
+
+
+def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=False, report=True) -> StudyResult:
+    """Run (or resume) a study and write its results.
+
+    Parameters
+    ----------
+    plan : StudyPlan, dict or path
+        The plan (a :class:`StudyPlan`, its tables, or a TOML file).
+    out_dir : path
+        Output folder: ``campaigns.jsonl`` (one line per campaign, appended as campaigns
+        finish and sorted by index at the end), ``study.json``, ``statistics.csv`` and
+        ``report.html``.  Campaigns already in ``campaigns.jsonl`` are not run again.
+    jobs : int, default 1
+        ``1``: in this process; ``N``: a local dask cluster of ``N`` workers; ``0``: one per core.
+    scheduler : str, optional
+        Address of an existing dask scheduler (overrides ``jobs``).
+    client : distributed.Client, optional
+        An open client (overrides ``jobs`` and ``scheduler``).
+    progress : bool
+        Show the progress.
+    report : bool
+        Write ``report.html`` (figures take a few seconds).
+
+    Returns
+    -------
+    StudyResult
+    """
+    from ..io.results import atomic_write, write_csv, write_json
+    from .parallel import map_tasks
+
+    if not isinstance(plan, StudyPlan):
+        plan = StudyPlan.from_mapping(plan) if isinstance(plan, dict) else load_study_plan(plan)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / RESULTS_FILE
+    done = read_campaign_lines(path, plan)
+    todo = [i for i in range(plan.n_campaigns) if i not in done]
+
+    with open(path, "a", encoding="utf-8") as fh:
+
+        def append(_, line):
+            fh.write(json.dumps(line, allow_nan=False) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+            done[line["index"]] = line
+
+        map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
+                  progress=progress, desc="campaigns", on_result=append)
+    lines = [done[i] for i in sorted(done)]
+    atomic_write(path, "".join(json.dumps(line, allow_nan=False) + "\n" for line in lines))
+    current = tuple(done[i] for i in range(plan.n_campaigns))
+    result = StudyResult(plan.name, plan, current, tuple(study_statistics(current)), n_run=len(todo))
+    write_json(out / "study.json", result.summary())
+    write_csv(out / "statistics.csv", list(result.statistics),
+              columns=list(result.statistics[0]) if result.statistics else ["grid_point", "parameter"])
+    if report:
+        from ..report.study_plots import write_study_report
+
+        write_study_report(result, out / "report.html")
+    return result
+
