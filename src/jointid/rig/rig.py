@@ -32,7 +32,7 @@ from typing import Mapping
 import numpy as np
 import scipy.signal
 
-from ..errors import ConvergenceWarning, StructureError
+from ..errors import ConvergenceError, ConvergenceWarning, StructureError
 from ..io.channels import Channels
 from ..modal.analysis import ModalModel, modal_analysis
 from ..modal.beam import SEED_GEOMETRY, JointedBeam, seed_bolted_beam
@@ -486,6 +486,142 @@ class VirtualRig:
                       for s in states]) / force_amplitude
         amp = np.array([np.max(np.abs(s.joint_at(np.linspace(0, 1 / s.frequency_hz, 257)))) for s in states])
         return RigFRF(np.asarray(frequencies_hz, float), H, float(force_amplitude), sensor, amp)
+
+    # --- backbone and ring-down ----------------------------------------------------------
+    def backbone(self, amplitudes, n_harmonics: int = 9, n_time: int = 256, tol: float = 1e-11):
+        """The rig's exact backbone of mode 1: damped nonlinear modes of the reduced model.
+
+        For each first-harmonic amplitude ``a`` of the modal coordinate ``eta_1`` the periodic
+        motion of ``eta'' + (2 zeta Omega - xi) eta' + Omega^2 eta + Psi^T f_nl(Psi eta) = 0``
+        (all ``n_modes`` modes, ``n_harmonics`` harmonics, joint force by AFT with its exact
+        Jacobian) is solved for the harmonics, the frequency ``omega`` and the damping ``xi``
+        that makes it periodic (the extended periodic motion concept, Krack 2015), with
+        ``eta_1 = a cos(omega t) + higher harmonics``; ``zeta = xi / (2 omega)``.
+
+        Parameters
+        ----------
+        amplitudes : array_like
+            First-harmonic amplitudes of ``eta_1`` (continued in the given order).
+        n_harmonics, n_time : int
+        tol : float
+            On the relative residual.
+
+        Returns
+        -------
+        Backbone
+            ``source = "rig"``, zero standard errors.
+        """
+        from ..identify.backbone import Backbone
+        from .reduced import _aft_basis
+
+        m = self.model
+        H = int(n_harmonics)
+        n = 2 * H + 1
+        nm, nj = m.n_modes, m.n_joints
+        E, P = _aft_basis(H, int(n_time))
+        kk = np.zeros(n)
+        kk[1::2] = kk[2::2] = np.arange(1, H + 1)
+        Psi = m.joint_shapes
+        free = np.ones(nm * n + 2, bool)
+        free[[1, 2]] = False  # eta_1: a1 = a, b1 = 0
+
+        def residual(Y, w, xi, jac):
+            U = Psi @ Y
+            F, _, JF = m._aft(U, E, P, jacobian=jac)
+            R = Psi.T @ F
+            d = 2 * m.zeta * m.omega - xi
+            R = R + (m.omega[:, None] ** 2 - (kk * w) ** 2) * Y
+            R[:, 1::2] += d[:, None] * kk[1::2] * w * Y[:, 2::2]
+            R[:, 2::2] -= d[:, None] * kk[2::2] * w * Y[:, 1::2]
+            if not jac:
+                return R
+            J = np.zeros((nm, n, nm * n + 2))
+            JF4 = JF.reshape(nj, n, nj, n)
+            G = np.einsum("jm,jakb,kl->malb", Psi, JF4, Psi).reshape(nm, n, nm * n)
+            J[:, :, : nm * n] = G
+            for i in range(nm):
+                blk = np.diag(m.omega[i] ** 2 - (kk * w) ** 2)
+                for h in range(1, H + 1):
+                    a_, b_ = 2 * h - 1, 2 * h
+                    blk[a_, b_] += d[i] * h * w
+                    blk[b_, a_] -= d[i] * h * w
+                J[i, :, i * n:(i + 1) * n] += blk
+                J[i, :, -2] = -2 * kk**2 * w * Y[i]
+                J[i, 1::2, -2] += d[i] * kk[1::2] * Y[i, 2::2]
+                J[i, 2::2, -2] -= d[i] * kk[2::2] * Y[i, 1::2]
+                J[i, 1::2, -1] = -kk[1::2] * w * Y[i, 2::2]
+                J[i, 2::2, -1] = kk[2::2] * w * Y[i, 1::2]
+            return R, J.reshape(nm * n, nm * n + 2)
+
+        a_list = np.atleast_1d(np.asarray(amplitudes, float))
+        Y = np.zeros((nm, n))
+        w, xi = float(m.omega[0]), float(2 * m.zeta[0] * m.omega[0])
+        om, ze = [], []
+        for a in a_list:
+            Y[0, 1], Y[0, 2] = a, 0.0
+            scale = float(m.omega[0] ** 2 * a)
+            for it in range(60):
+                R, J = residual(Y, w, xi, True)
+                err = np.linalg.norm(R) / scale
+                if err < tol:
+                    break
+                step = np.linalg.lstsq(J[:, free], -R.ravel(), rcond=None)[0]
+                x = np.concatenate([Y.ravel(), [w, xi]])
+                x[free] += step
+                Y, w, xi = x[: nm * n].reshape(nm, n), x[-2], x[-1]
+            else:
+                raise ConvergenceError(f"rig backbone at amplitude {a:.4g}: residual {err:.3g} after 60 Newton steps")
+            om.append(w)
+            ze.append(xi / (2 * w))
+        return Backbone(a_list, np.array(om), np.array(ze), 0.0, 0.0, "rig", 0.0, f"virtual rig, preload {self.preload:g} N",
+                        {"n_harmonics": H, "n_modes": nm})
+
+    def phase_resonance(self, force_amplitude, band=(0.97, 1.01)) -> RigSteadyState:
+        """The steady state in phase resonance at a force level: ``eta_1`` in quadrature with the force."""
+        from scipy import optimize
+
+        f1 = float(self.linear_frequencies_hz[0])
+
+        def g(f):
+            return self.steady_state(f, force_amplitude).modal[0, 2]  # sin part of eta_1: zero in quadrature
+
+        f = optimize.brentq(g, band[0] * f1, band[1] * f1, xtol=1e-10)
+        return self.steady_state(f, force_amplitude)
+
+    def ringdown(self, force_amplitude, duration, acquisition: Acquisition | None = None, rng=None, *,
+                 substeps: int = 8, source: str = "") -> tuple:
+        """Ring-down test: the shaker drives mode 1 in phase resonance, then is released at ``t = 0``.
+
+        The free decay starts on the periodic orbit of harmonic balance (the joint's
+        hysteretic state included) and is integrated in time (:func:`~jointid.rig.reduced.integrate`,
+        ``substeps`` steps per sample) with no force.  The force cell then reads only its
+        noise; the accelerometers get theirs.
+
+        Returns
+        -------
+        record : Channels
+            ``force``, the accelerometers; ``meta`` holds the release frequency.
+        state : RigSteadyState
+            The steady state at the release.
+        """
+        from .reduced import integrate
+
+        acquisition = acquisition or Acquisition()
+        rng = np.random.default_rng(rng)
+        s = self.phase_resonance(force_amplitude)
+        fs = acquisition.fs
+        n = int(round(float(duration) * fs))
+        eta, vel, js = self.model.initial_conditions([s])
+        traj = integrate(self.model, [s.omega], np.zeros((1, 3)), n / fs, 1.0 / (fs * int(substeps)),
+                         initial=(0.0, eta, vel, js), sample_every=int(substeps))
+        data = {"force": acquisition.force_noise * rng.standard_normal(n)}
+        for j, name in enumerate(self.model.sensor_names):
+            data[name] = traj.accel[0, j, :n] + acquisition.accel_noise * rng.standard_normal(n)
+        units = {"force": "N", **{name: "m/s^2" for name in self.model.sensor_names}}
+        rec = Channels.from_arrays(data, fs=fs, units=units, source=source,
+                                   meta={"preload": self.preload, "test": "ringdown", "release_force": float(force_amplitude),
+                                         "release_frequency_hz": s.frequency_hz})
+        return rec, s
 
     def random_test(self, test: RandomTest | None = None, acquisition: Acquisition | None = None, rng=None,
                     source: str = "") -> Channels:

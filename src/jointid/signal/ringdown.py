@@ -1,0 +1,348 @@
+"""Free decay (ring-down) records: state reconstruction and the amplitude-dependent backbone.
+
+After the shaker is released the modal coordinate decays freely, ``q'' + h(q, q') = 0``.
+The decay is not periodic, so the harmonic fit of a steady state does not apply.  Here
+the record is cut into short overlapping windows of ``n_cycles`` periods and in each
+window the signal is fitted by one damped oscillation
+
+``x(tau) = Re(C exp(lambda tau)) + x0``,   ``lambda = -sigma + i omega_d``,   ``tau = t - t_c``
+
+(nonlinear least squares in ``omega_d`` and ``sigma``, linear in ``C`` and ``x0``, each
+window started from the previous one).  Within a window the frequency and the decay
+rate are taken as constant, which the nonlinearity only makes approximately true: the
+amplitude changes by ``exp(-sigma T)`` over a window, a few per cent for a lightly
+damped joint, and the fitted values are those of the window's centre to first order.
+
+From each window:
+
+* the natural frequency ``omega_n = |lambda|`` and damping ratio ``zeta = sigma / |lambda|``
+  (exact for a linear mode; the backbone of a weakly nonlinear one);
+* the displacement and velocity in closed form, ``q = Re(C / lambda^2 e^{lambda tau})``,
+  ``q' = Re(C / lambda e^{lambda tau})`` for an acceleration record: the states of the
+  force-state mapping on the free decay (:func:`ringdown_force_state_mapping`, restoring
+  force ``-q''``).  Their error is stated per window as the RMS of the fit residual
+  relative to the window's amplitude (``state_error``); it holds the measurement noise,
+  the other modes and the distortion of the decay inside the window;
+* the amplitude ``a = |C| / |lambda|^2`` of the displacement at the window's centre.
+
+Bias at low amplitude (noise floor)
+    The fitted amplitude is biased upwards by noise: ``E|C_hat|^2 = |C|^2 + 2 s_C^2`` with
+    ``s_C`` its standard error, a relative bias of about ``(s_C / |C|)^2``; the frequency
+    is unbiased to first order and the decay rate's error grows as ``s_C / |C|``.
+    Windows whose amplitude is below ``snr_min`` standard errors (default 30: amplitude
+    bias below 0.1 %) are flagged ``below_noise_floor`` and left out of the backbone.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize
+
+from ..errors import JointidWarning, RecordError
+from .harmonics import check_signal, check_time_base
+
+__all__ = ["DecayFit", "fit_decay", "ringdown_force_state_mapping", "dominant_frequency"]
+
+
+def _readonly(a):
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def dominant_frequency(t, x, f_range=None) -> float:
+    """Frequency [Hz] of the largest spectral peak of ``x`` (Hann window, parabolic refinement)."""
+    t = np.asarray(t, float)
+    x = np.asarray(x, float) - np.mean(x)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    n = 1 << int(np.ceil(np.log2(4 * t.size)))
+    X = np.abs(np.fft.rfft(x * np.hanning(x.size), n))
+    f = np.fft.rfftfreq(n, dt)
+    sel = np.ones(f.size, bool) if f_range is None else (f >= f_range[0]) & (f <= f_range[1])
+    sel[0] = False
+    if not np.any(sel):
+        raise RecordError(f"no spectral line in the range {f_range} Hz")
+    i = int(np.flatnonzero(sel)[np.argmax(X[sel])])
+    if 0 < i < f.size - 1:
+        y0, y1, y2 = np.log(X[i - 1:i + 2] + 1e-300)
+        d = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if (y0 - 2 * y1 + y2) != 0 else 0.0
+        return float(f[i] + d * (f[1] - f[0]))
+    return float(f[i])
+
+
+@dataclass(frozen=True, eq=False)
+class DecayFit:
+    """Windowed damped-oscillation fit of one free decay.
+
+    Attributes
+    ----------
+    t_centre : ndarray
+        Centre of each window [s].
+    amplitude, amplitude_stderr : ndarray
+        Displacement amplitude ``a`` at the centre (in the units of the record integrated
+        twice for an acceleration record).
+    omega_n, omega_stderr : ndarray
+        Natural frequency ``|lambda|`` [rad/s].
+    zeta, zeta_stderr : ndarray
+    state_error : ndarray
+        RMS residual of the window's fit relative to its amplitude (the error of the
+        reconstructed states).
+    below_noise_floor : ndarray of bool
+        ``amplitude < snr_min * amplitude_stderr``.
+    coefficients : ndarray, shape (n, 4)
+        ``[Re C, Im C, sigma, omega_d]`` of each window (signal units).
+    window : tuple of (int, int)
+        Sample range of each window.
+    kind : {"acceleration", "velocity", "displacement"}
+    n_cycles, snr_min : float
+    """
+
+    t_centre: np.ndarray
+    amplitude: np.ndarray
+    amplitude_stderr: np.ndarray
+    omega_n: np.ndarray
+    omega_stderr: np.ndarray
+    zeta: np.ndarray
+    zeta_stderr: np.ndarray
+    state_error: np.ndarray
+    below_noise_floor: np.ndarray
+    coefficients: np.ndarray = field(repr=False)
+    window: tuple = field(repr=False)
+    kind: str = "acceleration"
+    n_cycles: float = 8.0
+    snr_min: float = 30.0
+
+    def __len__(self):
+        return int(self.t_centre.size)
+
+    def backbone(self, label="", include_floor=False):
+        """The windows above the noise floor as a :class:`~jointid.identify.backbone.Backbone` (``"ringdown"``)."""
+        from ..identify.backbone import Backbone
+
+        keep = np.ones(len(self), bool) if include_floor else ~self.below_noise_floor
+        return Backbone(self.amplitude[keep], self.omega_n[keep], self.zeta[keep], self.omega_stderr[keep],
+                        self.zeta_stderr[keep], "ringdown", self.amplitude_stderr[keep], label,
+                        {"t_centre": self.t_centre[keep].tolist(), "state_error": self.state_error[keep].tolist()})
+
+    def states(self, t, x=None):
+        """Reconstructed ``(q, q', q'')`` at the samples of every window above the noise floor.
+
+        Parameters
+        ----------
+        t : array
+            The record's time base.
+        x : array, optional
+            The record; when given, the measured ``q''`` replaces the fitted one (an
+            acceleration record).
+
+        Returns
+        -------
+        list of (slice, q, v, acc)
+        """
+        t = np.asarray(t, float)
+        out = []
+        for i, (i0, i1) in enumerate(self.window):
+            if self.below_noise_floor[i]:
+                continue
+            cr, ci, sigma, wd = self.coefficients[i]
+            lam = complex(-sigma, wd)
+            C = complex(cr, ci)
+            p = {"acceleration": 2, "velocity": 1, "displacement": 0}[self.kind]
+            Cq = C / lam**p
+            e = np.exp(lam * (t[i0:i1] - self.t_centre[i]))
+            q, v, acc = (Cq * e).real, (Cq * lam * e).real, (Cq * lam**2 * e).real
+            if x is not None and self.kind == "acceleration":
+                acc = np.asarray(x[i0:i1], float)
+            out.append((slice(i0, i1), q, v, acc))
+        return out
+
+    def summary(self) -> dict:
+        n_ok = int(np.count_nonzero(~self.below_noise_floor))
+        return {
+            "kind": self.kind,
+            "n_windows": len(self),
+            "n_above_noise_floor": n_ok,
+            "n_cycles": self.n_cycles,
+            "snr_min": self.snr_min,
+            "state_error_median": float(np.median(self.state_error)) if len(self) else None,
+            "amplitude_range": [float(self.amplitude[~self.below_noise_floor].min()),
+                                float(self.amplitude[~self.below_noise_floor].max())] if n_ok else None,
+        }
+
+    def report(self) -> str:
+        s = self.summary()
+        rng = s["amplitude_range"]
+        head = (f"DecayFit ({self.kind}): {s['n_windows']} windows of {self.n_cycles:g} cycles, "
+                f"{s['n_above_noise_floor']} above the noise floor")
+        if rng:
+            head += f"; amplitude {rng[0]:.4g} .. {rng[1]:.4g}"
+        return head + f"; median state error {100 * (s['state_error_median'] or 0):.3g} %"
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(self.report())}</pre>"
+
+
+def _fit_window(tau, x, sigma0, wd0):
+    """Damped-oscillation fit of one window: ``(coef [Re C, Im C, sigma, wd, x0], cov, residual rms)``."""
+
+    def design(sigma, wd):
+        e = np.exp(-sigma * tau)
+        return np.column_stack([e * np.cos(wd * tau), -e * np.sin(wd * tau), np.ones_like(tau)])
+
+    def resid(p):
+        A = design(*p)
+        c, *_ = np.linalg.lstsq(A, x, rcond=None)
+        return A @ c - x
+
+    span = tau[-1] - tau[0]
+    sol = optimize.least_squares(resid, [sigma0, wd0], x_scale=[1.0 / span, 1.0 / span], method="lm",
+                                 xtol=1e-13, ftol=1e-13)
+    sigma, wd = sol.x
+    A = design(sigma, wd)
+    c, *_ = np.linalg.lstsq(A, x, rcond=None)
+    r = A @ c - x
+    dof = max(x.size - 5, 1)
+    s2 = float(r @ r) / dof
+    # full Jacobian in (Re C, Im C, sigma, wd, x0)
+    e = np.exp(-sigma * tau)
+    co, si = np.cos(wd * tau), np.sin(wd * tau)
+    model = e * (c[0] * co - c[1] * si)
+    dsig = -tau * model
+    dwd = e * (-c[0] * tau * si - c[1] * tau * co)
+    J = np.column_stack([A[:, 0], A[:, 1], dsig, dwd, A[:, 2]])
+    cov = np.linalg.pinv(J.T @ J) * s2
+    return np.array([c[0], c[1], sigma, wd, c[2]]), cov, np.sqrt(s2)
+
+
+def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=8.0, hop_cycles=2.0, snr_min=30.0,
+              start=None, channel="accel") -> DecayFit:
+    """Windowed damped-oscillation fit of a free decay (module docstring).
+
+    Parameters
+    ----------
+    t, x : array
+        Time [s] and the free decay of one modal coordinate (or one sensor).
+    kind : {"acceleration", "velocity", "displacement"}
+        What ``x`` is; amplitudes and states are given for the displacement.
+    frequency_hz : float, optional
+        Starting frequency; the largest spectral peak by default.
+    n_cycles, hop_cycles : float
+        Window length and step in periods of the starting frequency.
+    snr_min : float
+        Windows with ``amplitude < snr_min * amplitude_stderr`` are flagged.
+    start : float, optional
+        Time [s] from which to analyse (default: the largest envelope sample, i.e. the
+        release).
+    channel : str
+        Name used in messages.
+
+    Returns
+    -------
+    DecayFit
+
+    Raises
+    ------
+    RecordError
+        Bad time base or values, or a record shorter than one window.
+    """
+    if kind not in ("acceleration", "velocity", "displacement"):
+        raise RecordError(f"kind must be 'acceleration', 'velocity' or 'displacement', got {kind!r}")
+    t = check_signal(t, "time")
+    check_time_base(t)
+    x = check_signal(x, channel, t.size)
+    if not np.any(x - x.mean()):
+        raise RecordError(f"channel {channel!r}: the signal is constant; no decay to analyse")
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    f0 = float(frequency_hz) if frequency_hz is not None else dominant_frequency(t, x)
+    if not (np.isfinite(f0) and 0 < f0 < 0.5 / dt):
+        raise RecordError(f"channel {channel!r}: starting frequency {f0!r} Hz is not between 0 and Nyquist")
+    n_win = int(round(n_cycles / (f0 * dt)))
+    hop = max(1, int(round(hop_cycles / (f0 * dt))))
+    i_start = 0
+    if start is not None:
+        i_start = int(np.searchsorted(t, float(start)))
+    if t.size - i_start < n_win or n_win < 8:
+        raise RecordError(
+            f"channel {channel!r}: the decay spans {(t.size - i_start) * dt * f0:.3g} periods of {f0:.4g} Hz; "
+            f"a window of {n_cycles:g} periods (at least 8 samples) is needed")
+    p = {"acceleration": 2, "velocity": 1, "displacement": 0}[kind]
+    rows, covs, windows, errs = [], [], [], []
+    sigma, wd = 0.0, 2 * np.pi * f0
+    for i0 in range(i_start, t.size - n_win + 1, hop):
+        i1 = i0 + n_win
+        tc = 0.5 * (t[i0] + t[i1 - 1])
+        coef, cov, rms = _fit_window(t[i0:i1] - tc, x[i0:i1], sigma, wd)
+        if not (np.isfinite(coef).all() and coef[3] > 0):
+            break
+        sigma, wd = coef[2], coef[3]
+        rows.append(np.append(coef, tc))
+        covs.append(cov)
+        windows.append((i0, i1))
+        errs.append(rms / max(np.hypot(coef[0], coef[1]), 1e-300))
+    R = np.array(rows)
+    C = R[:, 0] + 1j * R[:, 1]
+    sigma, wd = R[:, 2], R[:, 3]
+    lam = -sigma + 1j * wd
+    wn = np.abs(lam)
+    amp = np.abs(C) / wn**p
+    zeta = sigma / wn
+    # linear propagation of the window covariance (C, sigma, wd) to (a, wn, zeta)
+    a_se, w_se, z_se = (np.empty(len(rows)) for _ in range(3))
+    for i, cov in enumerate(covs):
+        cr, ci, s, w = R[i, 0], R[i, 1], sigma[i], wd[i]
+        Cm, L = np.hypot(cr, ci), wn[i]
+        g_w = np.array([0, 0, s / L, w / L, 0])
+        g_a = np.array([cr / Cm, ci / Cm, 0, 0, 0]) / L**p - p * Cm / L ** (p + 1) * g_w
+        g_z = np.array([0, 0, 1 / L, 0, 0]) - s / L**2 * g_w
+        a_se[i], w_se[i], z_se[i] = (np.sqrt(max(g @ cov @ g, 0.0)) for g in (g_a, g_w, g_z))
+    floor = amp < snr_min * a_se
+    if np.all(floor):
+        warnings.warn(f"channel {channel!r}: every window of the decay is below the noise floor "
+                      f"(amplitude < {snr_min:g} standard errors)", JointidWarning, stacklevel=2)
+    coefs = np.column_stack([R[:, 0], R[:, 1], sigma, wd])
+    return DecayFit(_readonly(R[:, 5]), _readonly(amp), _readonly(a_se), _readonly(wn), _readonly(w_se),
+                    _readonly(zeta), _readonly(z_se), _readonly(errs), np.array(floor), _readonly(coefs),
+                    tuple(windows), kind, float(n_cycles), float(snr_min))
+
+
+def ringdown_force_state_mapping(decay: DecayFit, t, accel, terms="q + q'"):
+    """Force-state mapping on a free decay: ``-q''`` regressed on the terms, window by window.
+
+    Parameters
+    ----------
+    decay : DecayFit
+        From :func:`fit_decay` of the same acceleration record (its states are used).
+    t, accel : array
+        The record (measured ``q''``).
+    terms : str or TermLibrary
+        Restoring-force terms; ``"q + q'"`` gives the equivalent stiffness and damping of
+        each window.
+
+    Returns
+    -------
+    coefficients, stderr : ndarray, shape (n_windows_used, n_terms)
+    amplitude : ndarray
+        Window amplitudes (``decay.amplitude`` above the noise floor).
+    """
+    from ..identify.terms import library
+
+    if decay.kind != "acceleration":
+        raise RecordError(f"the free-decay force-state mapping needs an acceleration record, got {decay.kind!r}")
+    lib = library(terms)
+    coef, se = [], []
+    for _, q, v, acc in decay.states(t, accel):
+        X = lib.evaluate(q, v)
+        y = -acc
+        scale = np.max(np.abs(X), axis=0)
+        scale[scale == 0] = 1.0
+        c, *_ = np.linalg.lstsq(X / scale, y, rcond=None)
+        r = y - (X / scale) @ c
+        s2 = float(r @ r) / max(y.size - len(lib), 1)
+        cov = np.linalg.pinv((X / scale).T @ (X / scale)) * s2
+        coef.append(c / scale)
+        se.append(np.sqrt(np.clip(np.diag(cov), 0, None)) / scale)
+    return np.array(coef), np.array(se), decay.amplitude[~decay.below_noise_floor]
