@@ -19,15 +19,16 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from ..signal.harmonics import StateSignals
-from .regression import LstsqResult, lstsq_from_reduced, pooled_lstsq, reduce_blocks
+from .regression import LstsqResult, lstsq_from_reduced, pooled_solve, reduce_blocks
 from .terms import TermLibrary, library
+from .uncertainty import PooledCovariance, RecordScores, ci95, pooled_covariance, record_scores, sandwich
 
 __all__ = [
     "RecordFit",
@@ -71,6 +72,32 @@ def _omega1(value):
     return float(np.sqrt(value)) if value is not None and value > 0 else float("nan")
 
 
+def _ci_text(value, stderr) -> str:
+    ci = ci95(value, stderr)
+    return "" if ci is None else f", 95 % [{ci[0]:.8g}, {ci[1]:.8g}]"
+
+
+def record_weights(fits, weighting) -> np.ndarray:
+    """Pooled-fit weight of each record from its own fit.
+
+    ``"noise"``: the inverse of the white-noise level that carries the same information as
+    the record's own fit under the noise model (``sqrt(tr(M^-1 V) / p)``), so each record
+    counts by the information its own regression holds; it is floored at ``1e-13`` of the
+    record's restoring-force scale so that noise-free records keep finite, equal weights.
+    ``"none"``: all ones.
+    """
+    w = np.ones(len(fits))
+    if weighting == "none":
+        return w
+    for r, f in enumerate(fits):
+        R, n = f.reduced, f.n_samples
+        p = len(f.coefficients)
+        floor = 1e-13 * float(np.abs(R[:, p]).max()) / np.sqrt(n)
+        s = f.scores.effective_sigma(f.coefficients)
+        w[r] = 1.0 / max(s if np.isfinite(s) else 0.0, floor, np.finfo(float).tiny)
+    return w
+
+
 @dataclass(frozen=True)
 class RecordFit:
     """Force-state mapping of one record.
@@ -81,8 +108,9 @@ class RecordFit:
         Term names, in the library's order.
     coefficient_names : tuple of str
     coefficients, stderr : array
-        Estimates and standard errors (ordinary least-squares formula; residuals of a
-        harmonic record are not white, so read them as a scale, not a confidence level).
+        Estimates and standard errors from the noise model of
+        :mod:`jointid.identify.uncertainty` (white force noise entering the restoring force,
+        white acceleration noise entering through the harmonic fit).
     condition_number : float
         Of the column-scaled regression matrix.
     q_max : float
@@ -103,6 +131,9 @@ class RecordFit:
     residual_rms: float
     n_samples: int
     warnings: tuple = ()
+    covariance: np.ndarray | None = field(default=None, repr=False)
+    reduced: np.ndarray | None = field(default=None, repr=False, compare=False)  # R of [X, y_fit, y_raw]
+    scores: RecordScores | None = field(default=None, repr=False, compare=False)
 
     def get(self, name):
         """Coefficient by coefficient or term name."""
@@ -124,6 +155,15 @@ class RecordFit:
     def c(self):
         return _named(self.coefficient_names, self.coefficients, "c")
 
+    @property
+    def c_stderr(self):
+        return _named(self.coefficient_names, self.stderr, "c")
+
+    @property
+    def omega1_stderr(self) -> float:
+        s = _named(self.coefficient_names, self.stderr, "omega1^2")
+        return s / (2 * self.omega1) if s is not None and np.isfinite(self.omega1) else float("nan")
+
     def equation(self) -> str:
         return library(self.terms).equation(self.coefficients, self.stderr)
 
@@ -138,6 +178,11 @@ class RecordFit:
             "terms": list(self.terms),
             "coefficients": {n: float(v) for n, v in zip(self.coefficient_names, self.coefficients)},
             "stderr": {n: float(v) for n, v in zip(self.coefficient_names, self.stderr)},
+            "ci95": {n: ci95(v, e) for n, v, e in zip(self.coefficient_names, self.coefficients, self.stderr)},
+            "omega1_stderr": self.omega1_stderr,
+            "omega1_ci95": ci95(self.omega1, self.omega1_stderr),
+            "c_stderr": self.c_stderr,
+            "c_ci95": ci95(self.c, self.c_stderr),
             "condition_number": self.condition_number,
             "residual_rms": self.residual_rms,
             "n_samples": self.n_samples,
@@ -229,6 +274,9 @@ class ForceStateMapping:
         R, n = _reduced(lib, signals, self.filtered)
         p = len(lib)
         res = lstsq_from_reduced(R[:, :p], R[:, p], n, R[:, p + 1])
+        scores = record_scores(lib, signals, self.filtered)
+        cov = sandwich(R[:, :p].T @ R[:, :p], scores.covariance(res.coefficients))
+        res = replace(res, covariance=cov, stderr=np.sqrt(np.clip(np.diag(cov), 0.0, None)))
         warn = _resolution_warnings(list(lib), res, self.cond_limit, context)
         for w in warn:
             warnings.warn(w, IllConditionedWarning, stacklevel=3)
@@ -248,6 +296,9 @@ class ForceStateMapping:
             float(np.sqrt(res.rss / max(res.n_samples, 1))),
             res.n_samples,
             warn,
+            cov,
+            R,
+            scores,
         )
         return self
 
@@ -310,7 +361,11 @@ class PooledFit:
     condition_number : float
         Of the column-scaled pooled regression.
     weights : array
-        Weight of each record (inverse residual standard deviation of its own fit).
+        Weight of each record: the inverse of the white-noise level that carries the same
+        information as its own fit (:meth:`~jointid.identify.uncertainty.RecordScores.effective_sigma`).
+    covariance : PooledCovariance or None
+        Sandwich covariance of the shared and per-record coefficients (linear in the number
+        of records); ``shared_stderr`` and ``own_stderr`` come from it.
     """
 
     terms: tuple
@@ -326,6 +381,7 @@ class PooledFit:
     weights: np.ndarray = field(repr=False)
     n_samples: int = 0
     warnings: tuple = ()
+    covariance: PooledCovariance | None = field(default=None, repr=False, compare=False)
 
     def get(self, name):
         """A shared coefficient (float) or a per-record one (array) by name."""
@@ -360,12 +416,17 @@ class PooledFit:
         return {
             "omega1": self.omega1,
             "omega1_stderr": self.omega1_stderr,
+            "omega1_ci95": ci95(self.omega1, self.omega1_stderr),
             "f1_hz": self.omega1 / (2 * np.pi),
             "k3": self.k3,
             "shared": {n: float(v) for n, v in zip(self.shared_names, self.shared)},
             "shared_stderr": {n: float(v) for n, v in zip(self.shared_names, self.shared_stderr)},
+            "shared_ci95": {n: ci95(v, s) for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr)},
+            "shared_covariance": (self.covariance.shared.tolist() if self.covariance is not None else None),
             "per_record": {n: self.own[:, i].tolist() for i, n in enumerate(self.own_names)},
             "per_record_stderr": {n: self.own_stderr[:, i].tolist() for i, n in enumerate(self.own_names)},
+            "per_record_ci95": {n: [ci95(v, s) for v, s in zip(self.own[:, i], self.own_stderr[:, i])]
+                                for i, n in enumerate(self.own_names)},
             "q_max": self.q_max.tolist(),
             "frequency_hz": self.frequency_hz.tolist(),
             "condition_number": self.condition_number,
@@ -379,9 +440,10 @@ class PooledFit:
             f"(condition number {self.condition_number:.3g})"
         ]
         for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr):
-            lines.append(f"  {n:>10} = {v:.8g} ± {s:.2g}   (shared)")
+            lines.append(f"  {n:>10} = {v:.8g} ± {s:.2g}   (shared){_ci_text(v, s)}")
         if np.isfinite(self.omega1):
-            lines.append(f"  {'omega1':>10} = {self.omega1:.8g} rad/s = {self.omega1 / (2 * np.pi):.8g} Hz")
+            lines.append(f"  {'omega1':>10} = {self.omega1:.8g} ± {self.omega1_stderr:.2g} rad/s = "
+                         f"{self.omega1 / (2 * np.pi):.8g} Hz{_ci_text(self.omega1, self.omega1_stderr)}")
         for i, n in enumerate(self.own_names):
             lines.append(
                 f"  {n:>10} per record: {np.min(self.own[:, i]):.4g} .. {np.max(self.own[:, i]):.4g} "
@@ -411,8 +473,8 @@ class PooledForceStateMapping:
         default every damping-kind term (``q'``, ``|q'|q'`` ...) does and the stiffness
         terms are shared.
     weighting : {"noise", "none"}
-        ``"noise"`` weights each record by the inverse residual standard deviation of its
-        own single-record fit (records are measured with different noise levels).
+        ``"noise"`` weights each record by the inverse of the noise level its own fit
+        carries under the noise model (:func:`record_weights`).
     cond_limit : float
 
     Attributes
@@ -420,8 +482,9 @@ class PooledForceStateMapping:
     result_ : PooledFit
     coef_ : array
         The shared coefficients.
-    lstsq_ : LstsqResult
-        The whole pooled least-squares solution (shared, then per-record coefficients).
+    solution_ : PooledSolution
+        The pooled least-squares solution (shared and per-record coefficients, the
+        per-record elimination factors).
     """
 
     def __init__(self, terms="q + -q^3 + q'", per_record=None, weighting="noise", cond_limit=COND_LIMIT, filtered=True):
@@ -432,40 +495,75 @@ class PooledForceStateMapping:
         self.filtered = filtered
 
     @single_threaded
-    def fit(self, signals_list, *, context=""):
+    def fit(self, signals_list, *, context="", fits=None):
+        """Fit the pooled regression.
+
+        Parameters
+        ----------
+        signals_list : sequence of StateSignals
+        context : str
+            Prefix of warning messages.
+        fits : sequence of RecordFit, optional
+            The records' own fits with the same terms (from :class:`ForceStateMapping`);
+            their reduced factors and noise sums are reused instead of reading the samples again.
+        """
         signals_list = pooled_inputs(signals_list, self.weighting, "pooled regression")
         lib = library(self.terms)
         for s in signals_list:
             _check_terms(lib, s.acceleration.n_harmonics)
+        fits = own_fits(lib, signals_list, fits, self.filtered)
         shared_idx, own_idx = split_terms(lib, self.per_record)
         ns, no, nr = len(shared_idx), len(own_idx), len(signals_list)
         nt = len(lib)
-        # columns of each R: terms in library order, then y_fit, y_raw
-        reduced = [_reduced(lib, s, self.filtered) for s in signals_list]
-        res, weights = pooled_lstsq(reduced, shared_idx, own_idx, nt, nt + 1, self.weighting)
-        n_total = res.n_samples
-        shared_part = LstsqResult(
-            res.coefficients[:ns], res.stderr[:ns], res.covariance[:ns, :ns], res.condition_number, res.rss, n_total
-        )
+        weights = record_weights(fits, self.weighting)
+        sol = pooled_solve([(f.reduced, f.n_samples) for f in fits], shared_idx, own_idx, nt, weights)
+        order = shared_idx + own_idx
+        V_list = []
+        for r, f in enumerate(fits):
+            theta = np.empty(nt)
+            theta[shared_idx] = sol.shared
+            theta[own_idx] = sol.own[r]
+            V = f.scores.covariance(theta)
+            V_list.append(V[np.ix_(order, order)])
+        cov = pooled_covariance(sol, V_list, ns)
+        shared_se = np.sqrt(np.clip(np.diag(cov.shared), 0.0, None))
+        own_se = np.sqrt(np.clip(np.diagonal(cov.own, axis1=1, axis2=2), 0.0, None)).reshape(nr, no)
+        n_total = sol.n_samples
+        shared_part = LstsqResult(sol.shared, shared_se, cov.shared, sol.condition_number, float("nan"), n_total)
         warn = _resolution_warnings([lib[i] for i in shared_idx], shared_part, self.cond_limit, context)
         for w in warn:
             warnings.warn(w, IllConditionedWarning, stacklevel=3)
         self.library_ = lib
-        self.lstsq_ = res
+        self.solution_ = sol
         self.result_ = PooledFit(
             lib.names,
             tuple(lib[i].coefficient for i in shared_idx),
-            res.coefficients[:ns],
-            res.stderr[:ns],
+            sol.shared,
+            shared_se,
             tuple(lib[i].coefficient for i in own_idx),
-            res.coefficients[ns:].reshape(nr, no),
-            res.stderr[ns:].reshape(nr, no),
+            sol.own,
+            own_se,
             np.array([s.q_max() for s in signals_list]),
             np.array([s.frequency_hz for s in signals_list]),
-            res.condition_number,
+            sol.condition_number,
             weights,
             n_total,
             warn,
+            cov,
         )
         self.coef_ = self.result_.shared
         return self
+
+
+def own_fits(lib, signals_list, fits=None, filtered=True) -> list:
+    """Each record's own :class:`RecordFit` with ``lib``'s terms (reused when given and matching)."""
+    if fits is not None:
+        fits = list(fits)
+        if len(fits) != len(signals_list):
+            raise IdentificationError(f"{len(fits)} record fits given for {len(signals_list)} records")
+        if all(f is not None and f.terms == lib.names and f.scores is not None and f.reduced is not None
+               and f.scores.filtered == filtered for f in fits):
+            return fits
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        return [ForceStateMapping(lib, filtered=filtered).fit(s).result_ for s in signals_list]

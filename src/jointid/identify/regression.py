@@ -16,7 +16,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-__all__ = ["LstsqResult", "scaled_lstsq", "qr_reduce", "reduce_blocks", "lstsq_from_reduced", "pooled_lstsq"]
+__all__ = [
+    "LstsqResult",
+    "scaled_lstsq",
+    "qr_reduce",
+    "reduce_blocks",
+    "lstsq_from_reduced",
+    "pooled_lstsq",
+    "PooledSolution",
+    "pooled_solve",
+]
 
 
 @dataclass(frozen=True)
@@ -195,3 +204,91 @@ def pooled_lstsq(reduced, shared, own, rhs, noise=None, weighting="noise"):
         weights.append(w)
     B = np.vstack(blocks)
     return lstsq_from_reduced(B[:, :p], B[:, p], n_total, B[:, p + 1]), np.array(weights)
+
+
+@dataclass(frozen=True)
+class PooledSolution:
+    """Pooled least squares with per-record columns eliminated record by record.
+
+    Each record's own coefficients are ``own[r] = a_r - K[r] @ shared``; the shared
+    coefficients solve the Schur-complement problem (normal matrix ``schur``).  Nothing of
+    size ``n_records^2`` is ever formed.
+
+    Attributes
+    ----------
+    shared : array ``(ns,)``
+    own : array ``(n_records, no)``
+    K : array ``(n_records, no, ns)``
+        ``M_oo^-1 M_os`` of each record (unweighted Gram blocks).
+    own_gram_inv : array ``(n_records, no, no)``
+        ``M_oo^-1`` of each record.
+    schur : array ``(ns, ns)``
+        ``sum_r w_r^2 (M_ss - M_so M_oo^-1 M_os)``.
+    weights : array ``(n_records,)``
+    condition_number : float
+        Of the column-scaled Schur-complement problem (the shared coefficients).
+    n_samples : int
+    """
+
+    shared: np.ndarray
+    own: np.ndarray
+    K: np.ndarray
+    own_gram_inv: np.ndarray
+    schur: np.ndarray
+    weights: np.ndarray
+    condition_number: float
+    n_samples: int
+
+
+def pooled_solve(reduced, shared, own, rhs, weights) -> PooledSolution:
+    """Pooled least squares over records with block-wise elimination of the per-record columns.
+
+    Parameters
+    ----------
+    reduced : list of (R, n)
+        Each record's reduced factor (:func:`reduce_blocks`) and number of samples.
+    shared, own : sequence of int
+        Columns of ``R`` common to all records / one coefficient per record.
+    rhs : int
+        Column of the right-hand side.
+    weights : array
+        Weight of each record (its rows are multiplied by it).
+
+    Notes
+    -----
+    For each record an orthogonal transformation (QR of its own columns) splits its rows
+    into the part that determines its own coefficients and the part orthogonal to them;
+    the latter, stacked over the records, is the shared problem, solved by
+    :func:`lstsq_from_reduced`.  Memory grows linearly with the number of records.
+    """
+    shared, own = list(shared), list(own)
+    ns, no, nr = len(shared), len(own), len(reduced)
+    weights = np.asarray(weights, float)
+    rows, tops, Ks, Minv, n_total = [], [], np.zeros((nr, no, ns)), np.zeros((nr, no, no)), 0
+    for r, (R, n) in enumerate(reduced):
+        n_total += n
+        Sy = R[:, shared + [rhs]]
+        if no:
+            O = R[:, own]
+            scale = np.sqrt(np.sum(O**2, axis=0))
+            scale[scale == 0] = 1.0
+            Qo, Ro = linalg.qr(O / scale, mode="full", check_finite=False)
+            T = Qo.T @ Sy
+            Ro = Ro[:no] * scale  # upper triangular, O = Qo[:, :no] Ro
+            Roi = linalg.solve_triangular(Ro, np.eye(no), check_finite=False)
+            Ks[r] = Roi @ T[:no, :ns]
+            tops.append(Roi @ T[:no, ns])
+            Minv[r] = Roi @ Roi.T
+            rows.append(weights[r] * T[no:])
+        else:
+            tops.append(np.zeros(0))
+            rows.append(weights[r] * Sy)
+    if ns:
+        Bs = np.vstack(rows)
+        res = lstsq_from_reduced(Bs[:, :ns], Bs[:, ns], n_total)
+        theta_s, cond = res.coefficients, res.condition_number
+        schur = Bs[:, :ns].T @ Bs[:, :ns]
+    else:
+        theta_s, cond, schur = np.zeros(0), 1.0, np.zeros((0, 0))
+    own_coef = np.array([a - Ks[r] @ theta_s for r, a in enumerate(tops)]).reshape(nr, no)
+    return PooledSolution(theta_s, own_coef, Ks, Minv, schur, weights, float(cond), int(n_total))

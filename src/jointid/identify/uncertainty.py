@@ -1,0 +1,324 @@
+"""Noise model of force-state mapping: score covariances and sandwich standard errors.
+
+The regression of a steady-state record runs on ``y = Q - q''_fit`` with regressors
+``X = phi(q, q')`` built from the harmonic fit ``alpha`` (basis ``B(t)``, ``m = 2H + 1``
+coefficients) of the measured acceleration.  Two white noises enter:
+
+* the force noise ``eps_F`` (variance ``sigma_F^2``) enters ``y`` directly;
+* the acceleration noise (variance ``sigma_a^2``) enters only through ``alpha``, whose
+  error has covariance ``sigma_a^2 G^-1`` (``G = B^T B``) and moves ``q''``, ``q`` and
+  ``q'`` together.
+
+Linearising ``theta = (X^T X)^-1 X^T y`` around the noise-free record gives the error
+``d theta = (X^T X)^-1 u`` with the score
+
+    ``u = X^T eps_F + X^T D d_alpha``,
+    ``D = d r / d alpha = -(B + h_q B_q + h_v B_v + (d h / d q_max) d q_max / d alpha)``
+
+where ``r = y - X theta``, ``h = sum_k theta_k phi_k``, and ``B_q = B T_q``,
+``B_v = B T_v`` the displacement and velocity a unit change of each acceleration
+coefficient produces (``T_v``, ``T_q`` the analytic integration maps, the constant
+integrates to nothing).  When a coefficient follows a law in the amplitude, the envelope
+theorem gives ``d q_max = sign(q(t*)) B_q(t*) d alpha``.  The score covariance is
+
+    ``V = sigma_F^2 X^T X + sigma_a^2 (X^T D) G^-1 (X^T D)^T``
+
+and the covariance of the estimate the sandwich ``M^-1 V M^-1`` with ``M = X^T X``.
+
+:func:`record_scores` makes one streamed pass over a record and keeps what any model on
+that record's terms needs (``X^T B`` and the term-wise tensors of ``h_q``, ``h_v``), so
+the per-record fit, the pooled group fit and the preload model all evaluate their
+covariances without reading the samples again (:meth:`RecordScores.covariance`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg
+
+from ..conventions import n_coefficients
+from ..signal.harmonics import HarmonicSeries, StateSignals, _basis
+
+__all__ = [
+    "RecordScores",
+    "record_scores",
+    "PooledCovariance",
+    "pooled_covariance",
+    "LowRankCovariance",
+    "ci95",
+    "Z95",
+    "sandwich",
+    "scaled_inverse",
+]
+
+#: Two-sided 95 % quantile of the normal distribution.
+Z95 = 1.959963984540054
+
+
+def ci95(value, stderr):
+    """``[value - 1.96 stderr, value + 1.96 stderr]`` as floats (``None`` when unknown)."""
+    if value is None or stderr is None:
+        return None
+    v, s = float(value), float(stderr)
+    if not (np.isfinite(v) and np.isfinite(s)):
+        return None
+    return [v - Z95 * s, v + Z95 * s]
+
+
+def scaled_inverse(M) -> np.ndarray:
+    """Inverse of a symmetric positive (semi-)definite matrix, computed on its scaled form."""
+    M = np.asarray(M, float)
+    d = np.sqrt(np.abs(np.diag(M)))
+    d[d == 0] = 1.0
+    Ms = M / np.outer(d, d)
+    w, V = np.linalg.eigh(0.5 * (Ms + Ms.T))
+    keep = w > 1e-15 * max(float(np.max(np.abs(w), initial=0.0)), np.finfo(float).tiny)
+    inv = (V[:, keep] / w[keep]) @ V[:, keep].T  # pseudo-inverse on an exactly singular matrix
+    return inv / np.outer(d, d)
+
+
+def sandwich(M, V) -> np.ndarray:
+    """``M^-1 V M^-1`` (symmetrised)."""
+    Mi = scaled_inverse(M)
+    C = Mi @ V @ Mi
+    return 0.5 * (C + C.T)
+
+
+def _integration_map(omega, n_harmonics) -> np.ndarray:
+    """Matrix ``T`` with ``integral(series).coefficients = T @ series.coefficients``."""
+    m = n_coefficients(n_harmonics)
+    eye = np.eye(m)
+    return np.column_stack([HarmonicSeries(omega, eye[:, i]).integral().coefficients for i in range(m)])
+
+
+def _peak_direction(q_coefficients, Tq) -> np.ndarray:
+    """``d q_max / d alpha`` (envelope theorem) for the displacement series ``q``."""
+    c = np.asarray(q_coefficients, float)
+    H = (c.size - 1) // 2
+    n = 256 * (H + 1)
+    tau = np.arange(n) * (2 * np.pi / n)
+    B = _basis(tau, 1.0, H)
+    q = B @ c
+    i = int(np.argmax(np.abs(q)))
+    return np.sign(q[i]) * (B[i] @ Tq)
+
+
+@dataclass(frozen=True)
+class RecordScores:
+    """What the noise model needs of one record for any model on its terms.
+
+    Attributes
+    ----------
+    gram : array ``(p, p)``
+        ``Phi^T Phi`` of the term columns.
+    phi_b : array ``(p, m)``
+        ``Phi^T B``.
+    phi_dq_b, phi_dv_b : array ``(p, p, m)``
+        ``Phi^T diag(d phi_k / d q) B`` and ``Phi^T diag(d phi_k / d v) B`` for every term ``k``
+        (first index).
+    basis_gram : array ``(m, m)``
+        ``G = B^T B``.
+    Tq, Tv : array ``(m, m)``
+        Displacement and velocity coefficients per unit acceleration coefficient.
+    peak : array ``(m,)``
+        ``d q_max / d alpha``.
+    sigma_force, sigma_accel : float
+        White-noise standard deviations of the force and the acceleration outside the fitted
+        harmonics (``RSS / (n - m)``).
+    n_samples : int
+    filtered : bool
+        Whether the regression uses the filtered acceleration in ``Q - q''``.
+    """
+
+    gram: np.ndarray = field(repr=False)
+    phi_b: np.ndarray = field(repr=False)
+    phi_dq_b: np.ndarray = field(repr=False)
+    phi_dv_b: np.ndarray = field(repr=False)
+    basis_gram: np.ndarray = field(repr=False)
+    Tq: np.ndarray = field(repr=False)
+    Tv: np.ndarray = field(repr=False)
+    peak: np.ndarray = field(repr=False)
+    sigma_force: float
+    sigma_accel: float
+    n_samples: int
+    filtered: bool = True
+
+    def score_terms(self, theta, dtheta_dqmax=None) -> np.ndarray:
+        """``X^T D`` (``(p, m)``) in the record's term columns for coefficients ``theta``.
+
+        ``dtheta_dqmax`` is ``d theta / d q_max`` when coefficients follow amplitude laws.
+        """
+        theta = np.asarray(theta, float)
+        S = np.tensordot(theta, self.phi_dq_b, axes=1) @ self.Tq + np.tensordot(theta, self.phi_dv_b, axes=1) @ self.Tv
+        if self.filtered:
+            S = S + self.phi_b
+        if dtheta_dqmax is not None:
+            S = S + np.outer(self.gram @ np.asarray(dtheta_dqmax, float), self.peak)
+        return -S
+
+    def covariance(self, theta, dtheta_dqmax=None) -> np.ndarray:
+        """Covariance ``V`` of the score ``X^T (noise)`` in the record's term columns."""
+        S = self.score_terms(theta, dtheta_dqmax)
+        Gi = scaled_inverse(self.basis_gram)
+        sa2, sf2 = self.sigma_accel**2, self.sigma_force**2
+        V = sf2 * self.gram + sa2 * (S @ Gi @ S.T)
+        if not self.filtered:  # the raw acceleration noise also enters y directly
+            P = self.phi_b @ Gi @ S.T
+            V = V + sa2 * (self.gram - P - P.T)
+        return 0.5 * (V + V.T)
+
+    def effective_sigma(self, theta, dtheta_dqmax=None) -> float:
+        """White-noise level that would carry the same information: ``sqrt(tr(M^-1 V) / p)``."""
+        V = self.covariance(theta, dtheta_dqmax)
+        return float(np.sqrt(max(np.trace(scaled_inverse(self.gram) @ V) / len(V), 0.0)))
+
+
+def record_scores(lib, signals: StateSignals, filtered=True) -> RecordScores:
+    """One streamed pass over a record: the noise-model sums of :class:`RecordScores`.
+
+    Parameters
+    ----------
+    lib : TermLibrary
+    signals : StateSignals
+    filtered : bool
+        As in :class:`~jointid.identify.fsm.ForceStateMapping`.
+    """
+    acc = signals.acceleration
+    H, omega = acc.n_harmonics, signals.omega
+    m, p = n_coefficients(H), len(lib)
+    gram = np.zeros((p, p))
+    phi_b = np.zeros((p, m))
+    dq_b = np.zeros((p, p, m))
+    dv_b = np.zeros((p, p, m))
+    G = np.zeros((m, m))
+    bF = np.zeros(m)
+    FF = 0.0
+    for sl, q, v, _ in signals.blocks():
+        B = _basis(signals.t[sl] - acc.t0, omega, H)
+        Phi = lib.evaluate(q, v)
+        Q = np.array(signals.force[sl])  # a fresh (aligned) copy: sums independent of the input's memory layout
+        gram += Phi.T @ Phi
+        phi_b += Phi.T @ B
+        for k, t in enumerate(lib):
+            gq, gv = t.derivatives(q, v)
+            dq_b[k] += (Phi * gq[:, None]).T @ B
+            dv_b[k] += (Phi * gv[:, None]).T @ B
+        G += B.T @ B
+        bF += B.T @ Q
+        FF += float(Q @ Q)
+    n = signals.t.size
+    dof = max(n - m, 1)
+    try:
+        rss_F = max(FF - float(bF @ linalg.solve(G, bF, assume_a="pos")), 0.0)
+    except (linalg.LinAlgError, ValueError):
+        rss_F = float("nan")
+    Tv = _integration_map(omega, H)
+    Tq = Tv @ Tv
+    return RecordScores(
+        gram, phi_b, dq_b, dv_b, G, Tq, Tv, _peak_direction(signals.displacement.coefficients, Tq),
+        float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n), bool(filtered),
+    )
+
+
+@dataclass(frozen=True)
+class PooledCovariance:
+    """Sandwich covariance of a pooled fit with shared and per-record coefficients.
+
+    ``own`` coefficients of different records are correlated only through the shared
+    ones, so the whole covariance is kept in a form linear in the number of records:
+
+    * ``shared`` ``(ns, ns)``;
+    * ``own`` ``(n_records, no, no)`` and ``own_shared`` ``(n_records, no, ns)``;
+    * ``cov(own_r, own_s) = -F_r K_s^T - K_r F_s^T + K_r shared K_s^T`` for ``r != s``,
+      with ``K`` and ``F`` ``(n_records, no, ns)``.
+    """
+
+    shared: np.ndarray
+    own: np.ndarray
+    own_shared: np.ndarray
+    K: np.ndarray = field(repr=False)
+    F: np.ndarray = field(repr=False)
+    own_only: np.ndarray = field(repr=False)  # M_oo^-1 V_oo M_oo^-1 of each record
+
+    def own_factor(self, j, records=None):
+        """Covariance of own coefficient ``j`` over ``records`` as ``diag(d) + U W U^T``."""
+        idx = np.arange(self.own.shape[0]) if records is None else np.asarray(records, int)
+        d = self.own_only[idx, j, j]
+        U = np.hstack([self.K[idx, j, :], self.F[idx, j, :]])
+        ns = self.shared.shape[0]
+        W = np.block([[self.shared, -np.eye(ns)], [-np.eye(ns), np.zeros((ns, ns))]])
+        return LowRankCovariance(d, U, W)
+
+
+def pooled_covariance(solution, V_list, n_shared) -> PooledCovariance:
+    """Sandwich covariance of a :class:`~jointid.identify.regression.PooledSolution`.
+
+    ``V_list[r]`` is record ``r``'s score covariance ordered as its shared columns, then its
+    own columns (records are independent).
+    """
+    ns = n_shared
+    Sch_i = scaled_inverse(solution.schur) if ns else np.zeros((0, 0))
+    nr, no = solution.own.shape
+    meat = np.zeros((ns, ns))
+    Ts, ws = [], solution.weights
+    for r, V in enumerate(V_list):
+        T = np.hstack([np.eye(ns), -solution.K[r].T])
+        Ts.append(T)
+        meat += ws[r] ** 4 * (T @ V @ T.T)
+    C_ss = Sch_i @ meat @ Sch_i
+    C_ss = 0.5 * (C_ss + C_ss.T)
+    F = np.zeros((nr, no, ns))
+    own_only = np.zeros((nr, no, no))
+    own = np.zeros((nr, no, no))
+    own_shared = np.zeros((nr, no, ns))
+    for r, V in enumerate(V_list):
+        Mi, K = solution.own_gram_inv[r], solution.K[r]
+        Voo = V[ns:, ns:]
+        F[r] = Mi @ (ws[r] ** 2 * (V[ns:] @ Ts[r].T)) @ Sch_i
+        own_only[r] = Mi @ Voo @ Mi
+        own[r] = own_only[r] - F[r] @ K.T - K @ F[r].T + K @ C_ss @ K.T
+        own_shared[r] = F[r] - K @ C_ss
+    return PooledCovariance(C_ss, own, own_shared, solution.K, F, own_only)
+
+
+@dataclass(frozen=True)
+class LowRankCovariance:
+    """A covariance ``diag(d) + U W U^T`` of many quantities (linear memory)."""
+
+    d: np.ndarray
+    U: np.ndarray
+    W: np.ndarray
+
+    @staticmethod
+    def stack(parts):
+        """Block-diagonal combination of independent covariances."""
+        parts = list(parts)
+        d = np.concatenate([p.d for p in parts])
+        U = linalg.block_diag(*[p.U for p in parts])
+        W = linalg.block_diag(*[p.W for p in parts])
+        return LowRankCovariance(d, U, W)
+
+    def congruence(self, L) -> np.ndarray:
+        """``L C L^T`` for a matrix ``L`` ``(k, n)``."""
+        L = np.atleast_2d(np.asarray(L, float))
+        LU = L @ self.U
+        out = (L * self.d) @ L.T + LU @ self.W @ LU.T
+        return 0.5 * (out + out.T)
+
+    def solve(self, b) -> np.ndarray:
+        """``C^-1 b`` by the Woodbury identity (``d`` floored at a tiny positive value)."""
+        b = np.asarray(b, float)
+        d = np.maximum(self.d, 1e-300 + 1e-14 * np.max(np.abs(self.d), initial=0.0))
+        Db = b / (d if b.ndim == 1 else d[:, None])
+        DU = self.U / d[:, None]
+        k = self.W.shape[0]
+        if k == 0:
+            return Db
+        Winv = np.linalg.pinv(self.W)
+        core = Winv + self.U.T @ DU
+        return Db - DU @ np.linalg.solve(core, self.U.T @ Db)
+
+    def dense(self) -> np.ndarray:
+        return np.diag(self.d) + self.U @ self.W @ self.U.T
