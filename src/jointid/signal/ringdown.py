@@ -12,11 +12,16 @@ window started from the previous one).  Within a window the frequency and the de
 rate are taken as constant, which the nonlinearity only makes approximately true: the
 amplitude changes by ``exp(-sigma T)`` over a window, a few per cent for a lightly
 damped joint, and the fitted values are those of the window's centre to first order.
+The second-order error is the average over the window: about ``(sigma T)^2 / 6`` of the
+amplitude-dependent part of ``omega^2`` (halve the window, quarter the bias).
 
 From each window:
 
 * the natural frequency ``omega_n = |lambda|`` and damping ratio ``zeta = sigma / |lambda|``
-  (exact for a linear mode; the backbone of a weakly nonlinear one);
+  (exact for a linear mode; the backbone of a weakly nonlinear one).  The decay rate of
+  an acceleration record's envelope is that of the displacement less ``2 (dw/dt) / w``
+  (the frequency drifts as the amplitude falls); the drift is taken from the
+  neighbouring windows and the displacement's rate restored;
 * the displacement and velocity in closed form, ``q = Re(C / lambda^2 e^{lambda tau})``,
   ``q' = Re(C / lambda e^{lambda tau})`` for an acceleration record: the states of the
   force-state mapping on the free decay (:func:`ringdown_force_state_mapping`, restoring
@@ -113,7 +118,7 @@ class DecayFit:
     coefficients: np.ndarray = field(repr=False)
     window: tuple = field(repr=False)
     kind: str = "acceleration"
-    n_cycles: float = 8.0
+    n_cycles: float = 16.0
     snr_min: float = 30.0
 
     def __len__(self):
@@ -218,7 +223,7 @@ def _fit_window(tau, x, sigma0, wd0):
     return np.array([c[0], c[1], sigma, wd, c[2]]), cov, np.sqrt(s2)
 
 
-def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=8.0, hop_cycles=2.0, snr_min=30.0,
+def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=16.0, hop_cycles=4.0, snr_min=30.0,
               start=None, channel="accel") -> DecayFit:
     """Windowed damped-oscillation fit of a free decay (module docstring).
 
@@ -285,7 +290,11 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=8.0, hop
         errs.append(rms / max(np.hypot(coef[0], coef[1]), 1e-300))
     R = np.array(rows)
     C = R[:, 0] + 1j * R[:, 1]
-    sigma, wd = R[:, 2], R[:, 3]
+    sigma, wd = R[:, 2].copy(), R[:, 3]
+    if p and len(rows) >= 3:
+        # the envelope of q^(p) = (i w)^p q decays slower than q's while w drifts:
+        # sigma_q = sigma_x + p (dw/dt) / w, dw/dt from the neighbouring windows
+        sigma += p * np.gradient(wd, R[:, 5]) / wd
     lam = -sigma + 1j * wd
     wn = np.abs(lam)
     amp = np.abs(C) / wn**p
@@ -303,7 +312,7 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=8.0, hop
     if np.all(floor):
         warnings.warn(f"channel {channel!r}: every window of the decay is below the noise floor "
                       f"(amplitude < {snr_min:g} standard errors)", JointidWarning, stacklevel=2)
-    coefs = np.column_stack([R[:, 0], R[:, 1], sigma, wd])
+    coefs = np.column_stack([R[:, 0], R[:, 1], R[:, 2], wd])  # the fitted oscillation of each window
     return DecayFit(_readonly(R[:, 5]), _readonly(amp), _readonly(a_se), _readonly(wn), _readonly(w_se),
                     _readonly(zeta), _readonly(z_se), _readonly(errs), np.array(floor), _readonly(coefs),
                     tuple(windows), kind, float(n_cycles), float(snr_min))
