@@ -43,9 +43,10 @@ from ..modal.beam import SEED_TABLE4_HZ, seed_bolted_beam
 from ..modal.structure import Structure
 from ..modal.updating import update_to_frequencies
 from ..rig.plan import RigCampaign, MeasurementPlan, read_random_record, run_test_plan, structure_section, write_manifest
-from ..rig.rig import RigFRF, VirtualRig, parabolic_peak, seed_rig
+from ..rig.rig import RigFRF, VirtualRig, seed_rig
 from ..signal.frf import fit_modes, h1_estimate
 from .workflow import CampaignResult, IdentifySettings, identify_campaign
+from .reprediction import Reprediction, repredict_group
 
 __all__ = ["DemoSettings", "Reprediction", "PreloadResult", "DemoResult", "run_demo", "CHECK_LIMITS"]
 
@@ -96,58 +97,6 @@ class DemoSettings:
             "update_starts": self.update_starts,
             "basis_modes": self.basis_modes,
             "rig_options": dict(self.rig_options),
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class Reprediction:
-    """The identified single-mode model's nonlinear FRF beside the rig's (seed Fig 10).
-
-    Attributes
-    ----------
-    force_level : float
-    model : SingleModeModel
-        ``q'' + c(q_max) q' + omega1^2 q - k3 q^3 = phi_1(x_f) F sin(omega t)``.
-    frequency_hz, predicted : ndarray
-        Harmonic-balance FRF magnitude at the 42 cm accelerometer [(m/s^2)/N].
-    exact : RigFRF
-        The rig's steady states at the dwell frequencies (and the peak refinement).
-    measured_frequency_hz, measured : ndarray
-        Fundamental of the recorded accel_42 over the fundamental of the recorded force.
-    peak_predicted, peak_exact : (float, float)
-        ``(frequency [Hz], magnitude)`` of each peak.
-    """
-
-    force_level: float
-    model: object
-    frequency_hz: np.ndarray
-    predicted: np.ndarray
-    exact: RigFRF
-    measured_frequency_hz: np.ndarray
-    measured: np.ndarray
-    peak_predicted: tuple
-    peak_exact: tuple
-
-    @property
-    def peak_frequency_error_percent(self) -> float:
-        return 100.0 * (self.peak_predicted[0] / self.peak_exact[0] - 1.0)
-
-    @property
-    def peak_amplitude_error_percent(self) -> float:
-        return 100.0 * (self.peak_predicted[1] / self.peak_exact[1] - 1.0)
-
-    def summary(self) -> dict:
-        return {
-            "force_level": self.force_level,
-            "model": self.model.summary(),
-            "peak_predicted": {"frequency_hz": self.peak_predicted[0], "magnitude": self.peak_predicted[1]},
-            "peak_exact": {"frequency_hz": self.peak_exact[0], "magnitude": self.peak_exact[1]},
-            "peak_frequency_error_percent": self.peak_frequency_error_percent,
-            "peak_amplitude_error_percent": self.peak_amplitude_error_percent,
-            "frequency_hz": self.frequency_hz.tolist(),
-            "predicted": self.predicted.tolist(),
-            "measured_frequency_hz": self.measured_frequency_hz.tolist(),
-            "measured": self.measured.tolist(),
         }
 
 
@@ -345,28 +294,14 @@ def _exact_frf(camp: RigCampaign, force_level, sensor="accel_42", refine=9) -> R
 
 def _reprediction(pr_camp: RigCampaign, result: CampaignResult, structure: Structure, force_level, n_points,
                   sensor="accel_42") -> Reprediction | None:
-    from ..simulate.hbm import frequency_response
-    from ..simulate.model import SingleModeModel
-
-    preload = pr_camp.rig.preload
-    g = result.group(preload, force_level)
-    law = result.damping_laws.get(preload)
-    if g.pooled is None or law is None:
-        return None
-    model = SingleModeModel("q + -q^3 + q'", (g.pooled.omega1**2, g.pooled.k3 or 0.0, 0.0),
-                            {"q'": tuple(float(c) for c in law.coefficients)})
-    phi_f = float(structure.phi_force[0])
-    phi_s = float(structure.phi_sensors[list(structure.sensors).index(sensor), 0])
+    """The group's re-prediction at the sensor (per newton), against the rig's exact FRF."""
+    g = result.group(pr_camp.rig.preload, force_level)
+    phi_f = abs(float(structure.phi_force[0]))
+    phi_s = abs(float(structure.phi_sensors[list(structure.sensors).index(sensor), 0]))
     exact = _exact_frf(pr_camp, force_level, sensor)
-    lo, hi = exact.frequency_hz[0], exact.frequency_hz[-1]
-    f_pk, _ = exact.peak()
-    grid = np.unique(np.concatenate([np.linspace(lo, hi, int(n_points)), f_pk + np.linspace(-0.04, 0.04, 17)]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointidWarning)
-        r = frequency_response(model, phi_f * force_level, 2 * np.pi * grid, n_harmonics=5, stability=False)
-    mag = np.abs(phi_s) * (2 * np.pi * grid) ** 2 * r.amplitude / force_level
-    fm, Hm = _measured_frf(pr_camp, result, force_level, sensor)
-    return Reprediction(float(force_level), model, grid, mag, exact, fm, Hm, parabolic_peak(grid, mag), exact.peak())
+    return repredict_group(result, g, n_points=n_points, forcing=phi_f * float(force_level), scale=phi_s * phi_f,
+                           measured=_measured_frf(pr_camp, result, force_level, sensor), exact=exact,
+                           quantity=f"fundamental of {sensor} / force [(m/s^2)/N]")
 
 
 def _exact_energy(rig: VirtualRig, result: CampaignResult) -> dict:

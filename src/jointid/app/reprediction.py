@@ -1,0 +1,364 @@
+"""Re-prediction of the measured nonlinear FRFs with the identified model (seed Fig 10).
+
+For each (preload, force level) group the identified single-mode model
+
+``q'' + c(q_max) q' + omega1^2 q - k3 q^3 = Q sin(omega t)``
+
+(shared ``omega1`` and ``k3`` of the group's pooled fit, the preload's damping law
+``c(q_max)``) is solved by harmonic balance with pseudo-arclength continuation over the
+group's frequency band (:func:`jointid.simulate.hbm.frequency_response`, through any
+folds), at the group's modal forcing amplitude ``Q`` (the mean fundamental of the
+records' modal force; with an unknown force gain, the excitation times the identified
+gain).  The curve is the fundamental of the modal acceleration over the forcing,
+``omega^2 A / Q``, drawn over the measured points ``|q''_1| / |Q_1|`` of the dwells.
+
+Errors reported
+    * peak frequency and peak amplitude of the re-predicted curve against a reference
+      peak: the measured dwells' (a parabola through the three largest points), or an
+      exact reference curve when one is known (the virtual rig);
+    * the rms relative difference between each measured point and the model solved at
+      that record's own frequency and forcing.
+
+:func:`loop_errors` gives, per group, the rms difference between the measured and
+identified hysteresis loops (seed Figs 17-19) of the group's largest-amplitude record.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..errors import JointidError, JointidWarning
+from ..rig.rig import parabolic_peak
+from ..signal.harmonics import fit_harmonics
+
+__all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "loop_errors"]
+
+
+@dataclass(frozen=True, eq=False)
+class Reprediction:
+    """A group's identified model solved by harmonic balance beside its measured FRF.
+
+    Attributes
+    ----------
+    force_level : float
+    model : SingleModeModel
+        The identified model.
+    frequency_hz, predicted : ndarray
+        Re-predicted FRF magnitude (continuation order; not monotonic past a fold).
+    measured_frequency_hz, measured : ndarray
+        The measured points (fundamental of the response over that of the force), by frequency.
+    peak_predicted : (float, float)
+        ``(frequency [Hz], magnitude)`` of the re-predicted peak.
+    peak_reference : (float, float)
+        The peak it is compared with (measured dwells, or ``exact``).
+    exact : object, optional
+        An exact reference FRF (``frequency_hz``, ``H``), e.g. the virtual rig's.
+    preload : object
+    forcing : float
+        Modal forcing amplitude ``Q`` of the curve.
+    quantity : str
+        What the magnitude is (e.g. ``"modal acceleration / modal force"``).
+    point_errors : ndarray
+        Relative difference of the model solved at each measured point's frequency and
+        forcing against the measured point.
+    folds_hz : tuple of float
+        Frequencies of the folds (turning points) of the re-predicted curve.
+    stable : ndarray of bool, optional
+        Stability of each curve point.
+    """
+
+    force_level: float
+    model: object
+    frequency_hz: np.ndarray
+    predicted: np.ndarray
+    measured_frequency_hz: np.ndarray
+    measured: np.ndarray
+    peak_predicted: tuple
+    peak_reference: tuple
+    exact: object = None
+    preload: object = None
+    forcing: float = float("nan")
+    quantity: str = "modal acceleration / modal force"
+    point_errors: np.ndarray | None = None
+    folds_hz: tuple = ()
+    stable: np.ndarray | None = None
+
+    def __post_init__(self):
+        for name in ("frequency_hz", "predicted", "measured_frequency_hz", "measured", "point_errors", "stable"):
+            v = getattr(self, name)
+            if v is not None:
+                a = np.array(v)
+                a.setflags(write=False)
+                object.__setattr__(self, name, a)
+
+    @property
+    def reference_kind(self) -> str:
+        return "exact" if self.exact is not None else "measured dwells"
+
+    @property
+    def peak_exact(self):
+        """The reference peak (the name the demo's results use)."""
+        return self.peak_reference
+
+    @property
+    def peak_frequency_error_percent(self) -> float:
+        return 100.0 * (self.peak_predicted[0] / self.peak_reference[0] - 1.0)
+
+    @property
+    def peak_amplitude_error_percent(self) -> float:
+        return 100.0 * (self.peak_predicted[1] / self.peak_reference[1] - 1.0)
+
+    @property
+    def point_rms_error_percent(self) -> float | None:
+        if self.point_errors is None or self.point_errors.size == 0:
+            return None
+        return 100.0 * float(np.sqrt(np.mean(self.point_errors**2)))
+
+    def summary(self) -> dict:
+        d = {
+            "preload": self.preload,
+            "force_level": self.force_level,
+            "model": self.model.summary(),
+            "forcing": self.forcing,
+            "quantity": self.quantity,
+            "reference": self.reference_kind,
+            "peak_predicted": {"frequency_hz": self.peak_predicted[0], "magnitude": self.peak_predicted[1]},
+            "peak_reference": {"frequency_hz": self.peak_reference[0], "magnitude": self.peak_reference[1]},
+            "peak_frequency_error_percent": self.peak_frequency_error_percent,
+            "peak_amplitude_error_percent": self.peak_amplitude_error_percent,
+            "point_rms_error_percent": self.point_rms_error_percent,
+            "point_errors": None if self.point_errors is None else self.point_errors.tolist(),
+            "folds_hz": list(self.folds_hz),
+            "frequency_hz": self.frequency_hz.tolist(),
+            "predicted": self.predicted.tolist(),
+            "measured_frequency_hz": self.measured_frequency_hz.tolist(),
+            "measured": self.measured.tolist(),
+        }
+        if self.exact is not None:
+            d["peak_exact"] = dict(d["peak_reference"])
+        return d
+
+    def report(self) -> str:
+        pts = self.point_rms_error_percent
+        return (f"preload {self.preload}, F = {self.force_level}: peak {self.peak_predicted[0]:.4f} Hz "
+                f"({self.peak_frequency_error_percent:+.3f} %), magnitude {self.peak_predicted[1]:.4g} "
+                f"({self.peak_amplitude_error_percent:+.2f} %) vs {self.reference_kind}"
+                + (f"; measured points rms {pts:.2f} %" if pts is not None else "")
+                + (f"; folds at {', '.join(f'{f:.3f}' for f in self.folds_hz)} Hz" if self.folds_hz else ""))
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(self.report())}</pre>"
+
+    def plot(self, ax=None, **kwargs):
+        """Measured points and re-predicted curve (:func:`jointid.report.reprediction_plots.plot_reprediction`)."""
+        from ..report.reprediction_plots import plot_reprediction
+
+        return plot_reprediction([self], ax=ax, **kwargs)
+
+
+def identified_model(result, group):
+    """The group's identified single-mode model (pooled ``omega1``, ``k3``; the preload's ``c(q_max)``).
+
+    Returns ``None`` when the group has no pooled fit or its preload no damping law.
+    """
+    from ..simulate.model import SingleModeModel
+
+    law = result.damping_laws.get(group.preload)
+    if group.pooled is None or law is None or not np.isfinite(group.pooled.omega1):
+        return None
+    k3 = group.pooled.k3 if "k3" in group.pooled.shared_names else None
+    return SingleModeModel("q + -q^3 + q'", (group.pooled.omega1**2, k3 or 0.0, 0.0),
+                           {"q'": tuple(float(c) for c in law.coefficients)})
+
+
+def _fundamental(series) -> float:
+    c = np.asarray(series.coefficients)
+    return float(np.hypot(c[1], c[2]))
+
+
+def _group_members(result, group):
+    return [o for o in result.records if o.ok and o.spec.group == (group.preload, group.force_level)]
+
+
+def _gain(group) -> float:
+    if group.gain is None:
+        return 1.0
+    return float(group.gain.derived()["gain"][0])
+
+
+def _solve(model, forcing, omegas, n_harmonics):
+    from ..simulate.hbm import frequency_response
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        return frequency_response(model, forcing, omegas, n_harmonics=n_harmonics, stability=False)
+
+
+def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, forcing=None, scale: float = 1.0,
+                    measured=None, exact=None, quantity=None, span=None) -> Reprediction | None:
+    """Re-predict one group's nonlinear FRF with its identified model.
+
+    Parameters
+    ----------
+    result : CampaignResult
+    group : GroupResult
+    n_points : int
+        Continuation is started on a grid of this many points over the band (for the curve);
+        the peak is refined by a sweep on a fine grid around the largest response.
+    n_harmonics : int
+        Harmonics of the harmonic balance.
+    forcing : float, optional
+        Modal forcing amplitude ``Q``; default the mean fundamental of the records' modal
+        force (times the identified gain when the force gain is unknown).
+    scale : float
+        Factor from modal acceleration to the plotted response per unit of the measured
+        force (e.g. ``|phi_sensor| / |phi_force|`` for a sensor FRF per newton).
+    measured : (frequency_hz, magnitude), optional
+        The measured points; default the records' ``|q''_1| / |Q_1|`` (times ``scale``).
+    exact : object with ``frequency_hz``, ``H`` and ``peak()``, optional
+        An exact reference FRF; its peak is the reference instead of the measured one.
+    quantity : str, optional
+        Label of the magnitude.
+    span : (f_lo, f_hi), optional
+        Frequency band of the curve [Hz]; default the measured (or exact) points' span.
+
+    Returns
+    -------
+    Reprediction or None
+        ``None`` when the group has no identified model.
+    """
+    model = identified_model(result, group)
+    members = _group_members(result, group)
+    if model is None or not members:
+        return None
+    gain = _gain(group)
+    f_rec = np.array([o.signals.frequency_hz for o in members])
+    Q_rec = []
+    for o in members:
+        fser, _ = fit_harmonics(o.signals.t, o.signals.force, o.signals.omega, 1, channel="force")
+        Q_rec.append(_fundamental(fser) * gain)
+    Q_rec = np.asarray(Q_rec)
+    if measured is None:
+        m_rec = np.array([_fundamental(o.signals.acceleration) for o in members]) * gain / Q_rec * scale
+        order = np.argsort(f_rec)
+        measured = (f_rec[order], m_rec[order])
+    fm, Hm = (np.asarray(v, float) for v in measured)
+    Q = float(np.mean(Q_rec)) if forcing is None else float(forcing)
+    if span is None:
+        ref_f = fm if exact is None else np.asarray(exact.frequency_hz, float)
+        span = (float(np.min(ref_f)), float(np.max(ref_f)))
+    lo, hi = span
+    grid = np.linspace(lo, hi, int(n_points))
+    r = _solve(model, Q, 2 * np.pi * grid, n_harmonics)
+    mag = scale * r.omega**2 * r.amplitude / Q
+    # peak: a fine sweep about the largest point of the curve (both ways across a fold)
+    k = int(np.argmax(mag))
+    step = (hi - lo) / max(int(n_points) - 1, 1)
+    if exact is not None:
+        f_ref, _ = exact.peak()
+        centre, half = f_ref, 0.04
+    else:
+        centre, half = float(grid[k]), step
+    fine = centre + np.linspace(-half, half, 17)
+    rf = _solve(model, Q, 2 * np.pi * fine, n_harmonics)
+    mag_f = scale * rf.omega**2 * rf.amplitude / Q
+    f_all = np.concatenate([grid, fine])
+    m_all = np.concatenate([mag, mag_f])
+    o = np.argsort(f_all, kind="stable")
+    f_all, m_all = f_all[o], m_all[o]
+    keep = np.concatenate([[True], np.diff(f_all) > 1e-12 * hi])
+    f_all, m_all = f_all[keep], m_all[keep]
+    peak_pred = parabolic_peak(f_all, m_all)
+    folds = ()
+    stable = None
+    try:  # the curve through the folds, if any, by continuation
+        from ..simulate.hbm import frequency_response
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointidWarning)
+            rc = frequency_response(model, Q, omega_range=(2 * np.pi * lo, 2 * np.pi * hi), n_harmonics=n_harmonics,
+                                    stability=False, max_steps=2000)
+        if rc.folds:
+            folds = tuple(float(rc.omega[i] / (2 * np.pi)) for i in rc.folds)
+            f_all = rc.omega / (2 * np.pi)
+            m_all = scale * rc.omega**2 * rc.amplitude / Q
+            peak_pred = (float(f_all[np.argmax(m_all)]), float(np.max(m_all)))
+    except JointidError:
+        pass
+    peak_ref = exact.peak() if exact is not None else parabolic_peak(fm, Hm)
+    # the model at each measured point's own frequency and forcing
+    errs = []
+    if measured is not None and len(fm) == len(members):
+        for o_, fq, Qq, Hq in zip(sorted(members, key=lambda x: x.signals.frequency_hz), fm, Q_rec[np.argsort(f_rec)],
+                                  Hm):
+            rp = _solve(model, Qq, [2 * np.pi * fq], n_harmonics)
+            errs.append(scale * rp.omega[0] ** 2 * rp.amplitude[0] / Qq / Hq - 1.0)
+    qty = quantity or ("modal acceleration / modal force" if scale == 1.0 else "response / force")
+    return Reprediction(float(group.force_level), model, f_all, m_all, fm, Hm, peak_pred, tuple(peak_ref), exact,
+                        group.preload, Q, qty, np.asarray(errs) if errs else None, folds, stable)
+
+
+def repredict_campaign(result, **kw) -> tuple:
+    """:func:`repredict_group` for every group of a campaign result that has a model.
+
+    A group whose re-prediction fails (no convergence) is skipped with a warning: one
+    group never loses the others.
+    """
+    out = []
+    for g in result.groups:
+        try:
+            r = repredict_group(result, g, **kw)
+        except (JointidError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            warnings.warn(f"re-prediction of preload {g.preload}, force level {g.force_level} failed: {exc}",
+                          JointidWarning, stacklevel=2)
+            continue
+        if r is not None:
+            out.append(r)
+    return tuple(out)
+
+
+def loop_errors(result) -> list:
+    """Measured vs identified hysteresis loops of each group's largest-amplitude record.
+
+    The identified model is the group's shared ``omega1^2`` and ``k3`` with the record's
+    own pooled damping; with an unknown force gain the force is put in gain-free units
+    (times the identified gain) first.  Returns one dict per group: ``file``,
+    ``frequency_hz``, ``q_max``, and the relative rms difference ``rms_difference`` of
+    the filtered and unfiltered loops, with their enclosed areas.
+    """
+    from ..identify.hysteresis import hysteresis_loop
+
+    rows = []
+    for g in result.groups:
+        members = _group_members(result, g)
+        if g.pooled is None or not members:
+            continue
+        j = int(np.argmax([o.fit.q_max for o in members]))
+        best = members[j]
+        theta = []
+        for n in best.fit.coefficient_names:
+            if n in g.pooled.shared_names:
+                theta.append(g.pooled.get(n))
+            elif n in g.pooled.own_names:
+                theta.append(g.pooled.get(n)[j])
+            else:
+                theta.append(0.0)
+        signals = best.signals
+        gain = _gain(g)
+        if gain != 1.0:
+            signals = replace(signals, force=np.asarray(signals.force) * gain)
+        row = {"preload": g.preload, "force_level": g.force_level, "file": best.spec.file,
+               "frequency_hz": float(signals.frequency_hz), "q_max": float(best.fit.q_max)}
+        for filt in (True, False):
+            try:
+                loop = hysteresis_loop(signals, best.fit.terms, np.asarray(theta, float), filtered=filt)
+            except (JointidError, ValueError) as exc:
+                row["filtered" if filt else "unfiltered"] = {"error": str(exc)}
+                continue
+            row["filtered" if filt else "unfiltered"] = loop.summary()
+        rows.append(row)
+    return rows
