@@ -17,6 +17,7 @@ times lose no precision.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, field
 
@@ -59,29 +60,53 @@ def check_time_base(t, *, channel="time", rtol=1e-2) -> float:
     RecordError
         Naming the channel and the first offending sample.
     """
+    return _time_step(t, channel, rtol)[0]
+
+
+def _time_step(t, channel="time", rtol=1e-2):
+    """:func:`check_time_base` and :func:`_uniform_step` in one blocked pass: ``(dt, dt or None)``."""
     t = np.asarray(t, dtype=float)
     if t.ndim != 1 or t.size < 3:
         raise RecordError(f"channel {channel!r}: expected a 1-D time vector of at least 3 samples, got shape {t.shape}")
-    bad = ~np.isfinite(t)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
+    if not np.isfinite(t).all():
+        i = int(np.flatnonzero(~np.isfinite(t))[0])
         raise RecordError(f"channel {channel!r}: non-finite time value {t[i]!r} at sample {i}")
-    d = np.diff(t)
-    if (d <= 0).any():
-        i = int(np.flatnonzero(d <= 0)[0])
-        raise RecordError(
-            f"channel {channel!r}: time must increase strictly; sample {i + 1} ({t[i + 1]!r} s) "
-            f"does not follow sample {i} ({t[i]!r} s)"
-        )
-    dt = (t[-1] - t[0]) / (t.size - 1)
-    dev = np.abs(d - dt)
-    i = int(np.argmax(dev))
-    if dev[i] > rtol * dt:
+    n = t.size
+    t0 = float(t[0])
+    dt = (float(t[-1]) - t0) / (n - 1)
+    uniform = n >= 2 * TABLE_ROWS
+    tol = 8.0 * np.finfo(float).eps * max(abs(t0), abs(float(t[-1])))
+    rows = min(BLOCK, n - 1)
+    grid = dt * np.arange(rows)
+    d = np.empty(rows)
+    w = np.empty(rows)
+    worst, i_worst = -1.0, 0
+    for sl in _blocks(n - 1, rows):
+        m = sl.stop - sl.start
+        ds = d[:m]
+        np.subtract(t[sl.start + 1 : sl.stop + 1], t[sl], out=ds)
+        if (ds <= 0).any():
+            i = sl.start + int(np.flatnonzero(ds <= 0)[0])
+            raise RecordError(
+                f"channel {channel!r}: time must increase strictly; sample {i + 1} ({t[i + 1]!r} s) "
+                f"does not follow sample {i} ({t[i]!r} s)"
+            )
+        ds -= dt
+        j = int(np.argmax(np.abs(ds, out=ds)))
+        if ds[j] > worst:
+            worst, i_worst = float(ds[j]), sl.start + j
+        if uniform:
+            ws = w[:m]
+            np.subtract(t[sl], t0 + dt * sl.start, out=ws)
+            ws -= grid[:m]
+            uniform = bool(np.abs(ws, out=ws).max() <= tol)
+    if worst > rtol * dt:
+        i = i_worst
         raise RecordError(
             f"channel {channel!r}: uneven sampling; expected a uniform step of {dt:.6g} s, "
-            f"step {i} (after {t[i]!r} s) is {d[i]:.6g} s"
+            f"step {i} (after {t[i]!r} s) is {t[i + 1] - t[i]:.6g} s"
         )
-    return float(dt)
+    return float(dt), (float(dt) if uniform else None)
 
 
 def check_signal(x, name, n=None) -> np.ndarray:
@@ -243,6 +268,10 @@ def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tupl
             f"channel {channel!r}: harmonic {n_harmonics} of {omega / (2 * np.pi):.6g} Hz is at {f_top:.6g} Hz, "
             f"not below the Nyquist frequency {fs / 2:.6g} Hz; sample faster or fit fewer harmonics"
         )
+    if t0 is None:
+        dt = _uniform_step(t)
+        if dt is not None:  # the series starts at the first sample: tau = n dt
+            return _streaming_fit(None, x, omega, n_harmonics, float(t[0]), channel, dt)
     t0 = float(t[0]) if t0 is None else float(t0)
     return _streaming_fit(t - t0, x, omega, n_harmonics, t0, channel)
 
@@ -256,27 +285,178 @@ def _blocks(n, size=BLOCK):
         yield slice(start, min(n, start + size))
 
 
-def _streaming_fit(tau, x, omega, n_harmonics, t0, channel):
+# ----------------------------------------------------------------------------------------
+# Uniformly sampled records: sinusoids by rotation of one table
+# ----------------------------------------------------------------------------------------
+#
+# On a uniform grid ``t_n = t_0 + n dt`` the basis row of sample ``s + j`` is the row of
+# sample ``j`` rotated by the phase ``k omega dt s`` of each harmonic ``k``.  One table of
+# ``TABLE_ROWS`` rows therefore serves every block of a record: its sums against the data
+# are one matrix product over all blocks, and per block only a ``(2H+1)``-square rotation
+# is applied.  The table and the rotations are evaluated directly (no recurrence), so
+# every basis value is exact to a few units of rounding.
+
+#: Rows of the sinusoid table used to stream a uniformly sampled record.
+TABLE_ROWS = 4096
+
+
+def _uniform_step(t):
+    """Step ``dt`` when ``t`` equals ``t[0] + n dt`` to within its own rounding, else ``None``.
+
+    Time stamps produced as ``t0 + n dt`` (or ``n / fs``) pass; stamps rounded to fewer
+    digits than a double holds do not, and their records take the general path, which
+    uses every time stamp as it is.  Records shorter than two tables also take it (it
+    costs well under a millisecond there, and on few samples the rounding of the time
+    stamps does not average out).
+    """
+    n = t.size
+    if n < 2 * TABLE_ROWS:
+        return None
+    t0 = float(t[0])
+    dt = (float(t[-1]) - t0) / (n - 1)
+    tol = 8.0 * np.finfo(float).eps * max(abs(t0), abs(float(t[-1])))
+    rows = min(BLOCK, n)
+    grid = dt * np.arange(rows)
+    work = np.empty(rows)
+    for sl in _blocks(n, rows):
+        w = work[: sl.stop - sl.start]
+        np.subtract(t[sl], t0 + dt * sl.start, out=w)
+        w -= grid[: w.size]
+        if np.abs(w, out=w).max() > tol:
+            return None
+    return dt
+
+
+@functools.lru_cache(maxsize=6)
+def _table(omega_dt, n_harmonics, rows, weighted):
+    """Basis rows at phases ``omega_dt * j`` (``j < rows``) and their Gram matrix.
+
+    With ``weighted`` the table is ``[T, j T]`` (the sample index times the basis, for
+    derivatives with respect to the frequency).  Returns read-only ``(W, W.T @ W)``.
+    """
+    j = np.arange(rows, dtype=float)
+    T = np.empty((rows, n_coefficients(n_harmonics)))
+    T[:, 0] = 1.0
+    kt = np.multiply.outer(omega_dt * j, np.arange(1, n_harmonics + 1))
+    T[:, 1::2] = np.cos(kt)
+    T[:, 2::2] = np.sin(kt)
+    W = np.hstack([T, j[:, None] * T]) if weighted else T
+    gram = W.T @ W
+    W.flags.writeable = False
+    gram.flags.writeable = False
+    return W, gram
+
+
+def _rotations(phase, n_harmonics):
+    """``(len(phase), m, m)`` matrices ``M`` with ``basis(phase + theta) = basis(theta) @ M``."""
+    m = n_coefficients(n_harmonics)
+    k = np.arange(1, n_harmonics + 1)
+    kp = np.multiply.outer(np.asarray(phase, float), k)
+    c, s = np.cos(kp), np.sin(kp)
+    M = np.zeros((kp.shape[0], m, m))
+    M[:, 0, 0] = 1.0
+    ic, is_ = 2 * k - 1, 2 * k
+    M[:, ic, ic] = c  # cos(a + b) = cos a cos b - sin a sin b
+    M[:, is_, ic] = -s
+    M[:, is_, is_] = c  # sin(a + b) = sin a cos b + cos a sin b
+    M[:, ic, is_] = s
+    return M
+
+
+def _uniform_moments(x, omega_dt, n_harmonics, weighted=False, rows=TABLE_ROWS):
+    """Sums of a uniformly sampled ``x`` against the basis, in one pass over ``x``.
+
+    With ``A`` the basis at phases ``omega_dt * n`` and ``N = diag(n)`` (sample index):
+    returns ``(A.T A, A.T x)`` and, with ``weighted``, also ``A.T N A``,
+    ``A.T N^2 A`` and ``A.T N x``.
+    """
+    n = x.size
+    m = n_coefficients(n_harmonics)
+    rows = min(rows, n)
+    W, gram = _table(float(omega_dt), n_harmonics, rows, bool(weighted))
+    nb, r = divmod(n, rows)
+    parts = [(np.arange(nb) * float(rows), x[: nb * rows].reshape(nb, rows) @ W, gram)]
+    if r:
+        Wr = W[:r]
+        parts.append((np.array([float(nb * rows)]), (x[nb * rows :] @ Wr)[None, :], Wr.T @ Wr))
+    G = np.zeros((m, m))
+    b = np.zeros(m)
+    G1 = np.zeros((m, m))
+    G2 = np.zeros((m, m))
+    b1 = np.zeros(m)
+    for starts, U, Gw in parts:
+        M = _rotations(omega_dt * starts, n_harmonics)
+        Mt = M.transpose(0, 2, 1)
+        G0 = Gw[:m, :m]
+        G += (Mt @ G0 @ M).sum(axis=0)
+        b += np.einsum("bij,bi->j", M, U[:, :m])
+        if weighted:
+            Gj, Gjj = Gw[:m, m:], Gw[m:, m:]
+            s = starts[:, None, None]
+            G1 += (Mt @ (s * G0 + Gj) @ M).sum(axis=0)
+            G2 += (Mt @ ((s * s) * G0 + 2.0 * s * Gj + Gjj) @ M).sum(axis=0)
+            b1 += np.einsum("bij,bi->j", M, starts[:, None] * U[:, :m] + U[:, m:])
+    if weighted:
+        return G, b, G1, G2, b1
+    return G, b
+
+
+def _uniform_gn(x, omega, dt, n_harmonics):
+    """One Gauss-Newton step on the fundamental of a uniformly sampled periodic signal.
+
+    The same model and variable projection as :func:`_gn_pass`, with the Jacobian taken
+    at the coefficients of ``omega`` itself, all from one pass over ``x``.
+
+    Returns ``(step, standard error of omega, coefficients, explained fraction)``.
+    """
+    G, b, G1, G2, b1 = _uniform_moments(x, omega * dt, n_harmonics, weighted=True)
+    coef = linalg.solve(G, b, assume_a="pos")
+    n = x.size
+    xx = float(x @ x)
+    sx = b[0]  # the constant column sums x
+    var = max(xx - sx * sx / n, np.finfo(float).tiny)
+    rss = max(xx - float(b @ coef), 0.0)
+    fraction = 1.0 - rss / var
+    k = np.arange(1, n_harmonics + 1)
+    d = np.zeros_like(coef)  # J = tau A d: d/d omega of the series
+    d[1::2] = k * coef[2::2]
+    d[2::2] = -k * coef[1::2]
+    GJ = dt * (G1 @ d)
+    den = dt * dt * float(d @ G2 @ d) - float(GJ @ linalg.solve(G, GJ, assume_a="pos"))
+    if not den > 0:
+        return 0.0, np.inf, coef, fraction
+    step = (dt * float(d @ b1) - float(GJ @ coef)) / den
+    stderr = float(np.sqrt(rss / max(n - coef.size - 1, 1) / den))
+    return step, stderr, coef, fraction
+
+
+def _streaming_fit(tau, x, omega, n_harmonics, t0, channel, dt=None):
     """Harmonic least squares accumulated block by block (normal equations).
 
     The columns are nearly orthogonal sinusoids, so the Gram matrix is well conditioned
-    for any record of two periods or more.
+    for any record of two periods or more.  With ``dt`` (a uniform grid, ``tau = n dt``)
+    the sums come from one matrix product against a rotated table
+    (:func:`_uniform_moments`); otherwise the basis is evaluated at every ``tau``.
     """
-    m = n_coefficients(n_harmonics)
-    G = np.zeros((m, m))
-    r = np.zeros(m)
-    xx = 0.0
-    for sl in _blocks(tau.size):
-        A = _basis(tau[sl], omega, n_harmonics)
-        G += A.T @ A
-        r += A.T @ x[sl]
-        xx += float(x[sl] @ x[sl])
+    if dt is not None:
+        G, r = _uniform_moments(x, omega * dt, n_harmonics)
+        xx = float(x @ x)
+    else:
+        m = n_coefficients(n_harmonics)
+        G = np.zeros((m, m))
+        r = np.zeros(m)
+        xx = 0.0
+        for sl in _blocks(tau.size):
+            A = _basis(tau[sl], omega, n_harmonics)
+            G += A.T @ A
+            r += A.T @ x[sl]
+            xx += float(x[sl] @ x[sl])
     try:
         coef = linalg.solve(G, r, assume_a="pos")
     except (linalg.LinAlgError, ValueError) as exc:
         raise RecordError(f"channel {channel!r}: harmonic fit failed ({exc})") from exc
     rss = max(xx - float(coef @ r), 0.0)
-    return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(rss / tau.size))
+    return HarmonicSeries(float(omega), coef, t0), float(np.sqrt(rss / x.size))
 
 
 def _gn_pass(tau, x, omega, n_harmonics, coef_prev):
@@ -342,6 +522,33 @@ def _refine_progressively(tau, x, omega, n_harmonics, first=32768, growth=8):
         passes, tol = 2, 1e-3
 
 
+def _refine_uniform(x, omega, dt, n_harmonics, first=32768, growth=8, tol=1e-8):
+    """:func:`_refine_progressively` for a uniformly sampled record.
+
+    Every pass is one Gauss-Newton step with the Jacobian at the current frequency
+    (:func:`_uniform_gn`), so convergence is quadratic from the first pass and each
+    stage runs until a step moves the phase at its end by less than ``tol``: the result
+    is the fixed point to rounding, the same fixed point as the general path's.
+
+    Returns ``(omega, explained fraction)``.
+    """
+    n = x.size
+    m = min(n, first)
+    passes = 10
+    while True:
+        span = (m - 1) * dt
+        max_step = 0.5 * np.pi / span
+        for _ in range(passes):
+            step, _, _, fraction = _uniform_gn(x[:m], omega, dt, n_harmonics)
+            omega += float(np.clip(step, -max_step, max_step))
+            if abs(step) * span < tol:
+                break
+        if m == n:
+            return float(omega), float(fraction)
+        m = min(n, m * growth)
+        passes = 4
+
+
 def _spectral_peak(x, dt, f_range, channel) -> float:
     """Frequency of the largest peak of the (Hann, zero-padded) spectrum of a prefix of ``x``."""
     m = min(x.size, 32768)  # the spectrum of a prefix is enough to start the refinement
@@ -386,9 +593,12 @@ def estimate_frequency(t, force, *, channel="force", f_range=None, start_hz=None
     n = x.size
     dt = (t[-1] - t[0]) / (n - 1)
     f0 = float(start_hz) if start_hz is not None else _spectral_peak(x, dt, f_range, channel)
-    tau = t - t[0]
     n_harm = int(max(1, min(FORCE_HARMONICS, np.floor(0.45 / (f0 * dt)))))
-    omega, fraction = _refine_progressively(tau, x, 2 * np.pi * f0, n_harm)
+    dt_uniform = _uniform_step(t)
+    if dt_uniform is not None:
+        omega, fraction = _refine_uniform(x, 2 * np.pi * f0, dt_uniform, n_harm)
+    else:
+        omega, fraction = _refine_progressively(t - t[0], x, 2 * np.pi * f0, n_harm)
     if fraction < MIN_SINE_FRACTION or not np.isfinite(omega) or omega <= 0:
         raise RecordError(
             f"channel {channel!r}: no excitation frequency found; the best periodic fit ({f0:.6g} Hz) explains only "
@@ -449,15 +659,58 @@ class StateSignals:
         parts = list(self.blocks(size=self.t.size))
         return parts[0][1:]
 
+    @functools.cached_property
+    def _uniform_dt(self):
+        """The time step when the record is uniformly sampled (see :func:`_uniform_step`), else None."""
+        return _uniform_step(np.asarray(self.t, float))
+
     def blocks(self, size=BLOCK):
-        """Iterate ``(slice, q, q', q''_filtered)`` over blocks of the record."""
+        """Iterate ``(slice, q, q', q''_filtered)`` over blocks of the record.
+
+        On a uniform grid every block is one product of the fit's sinusoid table, rotated
+        to the block's start, with the three series' coefficients.
+        """
         C = np.column_stack(
             [self.displacement.coefficients, self.velocity.coefficients, self.acceleration.coefficients]
         )
         H = self.acceleration.n_harmonics
-        for sl in _blocks(self.t.size, size):
-            S = _basis(self.t[sl] - self.acceleration.t0, self.omega, H) @ C
+        dt = self._uniform_dt
+        if dt is None:
+            for sl in _blocks(self.t.size, size):
+                S = _basis(self.t[sl] - self.acceleration.t0, self.omega, H) @ C
+                yield sl, S[:, 0], S[:, 1], S[:, 2]
+            return
+        n = self.t.size
+        rows = min(int(size), n)
+        omega_dt = self.omega * dt
+        T, _ = _table(omega_dt, H, rows, False)
+        phase0 = self.omega * (float(self.t[0]) - self.acceleration.t0)
+        starts = np.arange(0, n, rows)
+        M = _rotations(phase0 + omega_dt * starts, H) @ C
+        for b, sl in enumerate(_blocks(n, rows)):
+            S = T[: sl.stop - sl.start] @ M[b]
             yield sl, S[:, 0], S[:, 1], S[:, 2]
+
+    def basis_blocks(self, size=BLOCK):
+        """Iterate ``(slice, A)``: the fit's design matrix ``[1, cos, sin, ...]`` block by block.
+
+        ``A`` is ``(block, 2H + 1)`` at the sample times (origin ``acceleration.t0``), the
+        same rows :meth:`blocks` combines; on a uniform grid it is the rotated table, not
+        a new evaluation of sines.
+        """
+        H = self.acceleration.n_harmonics
+        dt = self._uniform_dt
+        if dt is None:
+            for sl in _blocks(self.t.size, size):
+                yield sl, _basis(self.t[sl] - self.acceleration.t0, self.omega, H)
+            return
+        n = self.t.size
+        rows = min(int(size), n)
+        omega_dt = self.omega * dt
+        T, _ = _table(omega_dt, H, rows, False)
+        M = _rotations(self.omega * (float(self.t[0]) - self.acceleration.t0) + omega_dt * np.arange(0, n, rows), H)
+        for b, sl in enumerate(_blocks(n, rows)):
+            yield sl, T[: sl.stop - sl.start] @ M[b]
 
     def q_max(self) -> float:
         """Steady-state amplitude ``max |q(t)|`` of the reconstructed displacement."""
@@ -468,8 +721,20 @@ class StateSignals:
 DRIFT_TOL = 0.01
 
 
-def _refine_given(t, force, f_given, channel) -> float:
-    """The force's own frequency near ``f_given``; warns when they differ noticeably."""
+def _refine_given(t, force, f_given, channel, dt_uniform=None) -> float:
+    """The force's own frequency near ``f_given``; warns when they differ noticeably.
+
+    On a uniform grid one pass decides: a Gauss-Newton step from ``f_given``
+    (:func:`_uniform_gn`) estimates the force's frequency to second order in the
+    difference, so a step that drifts the phase by at most ``DRIFT_TOL`` over the record
+    confirms the given value.  Anything else (a larger drift, a force that is not a
+    clear sinusoid at ``f_given``) goes to the full refinement, which decides and warns.
+    """
+    if dt_uniform is not None:
+        n_harm = int(max(1, min(FORCE_HARMONICS, np.floor(0.45 / (f_given * dt_uniform)))))
+        step, _, _, fraction = _uniform_gn(force, 2 * np.pi * f_given, dt_uniform, n_harm)
+        if fraction >= MIN_SINE_FRACTION and abs(step) * (t[-1] - t[0]) <= DRIFT_TOL:
+            return f_given  # the force confirms it
     try:
         f = estimate_frequency(t, force, channel=channel, start_hz=f_given)
     except RecordError as exc:
@@ -522,7 +787,7 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
     """
     tname, fname, aname = channels
     t = check_signal(t, tname)
-    check_time_base(t, channel=tname)
+    _, dt_uniform = _time_step(t, tname)
     force = check_signal(force, fname, t.size)
     accel = check_signal(accel, aname, t.size)
     if not np.any(force - force.mean()):
@@ -534,7 +799,7 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
         if not np.isfinite(frequency_hz) or frequency_hz <= 0:
             raise RecordError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
         if refine_frequency:
-            frequency_hz = _refine_given(t, force, frequency_hz, fname)
+            frequency_hz = _refine_given(t, force, frequency_hz, fname, dt_uniform)
     else:
         frequency_hz = estimate_frequency(t, force, channel=fname)
     periods = (t[-1] - t[0] + dt) * frequency_hz
@@ -559,5 +824,8 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
             stacklevel=3,
         )
         n_harmonics = below
-    series, resid = _streaming_fit(t - t[0], accel, omega, n_harmonics, float(t[0]), aname)
-    return StateSignals(t, force, accel, series, frequency_hz, given, resid)
+    tau = None if dt_uniform is not None else t - t[0]
+    series, resid = _streaming_fit(tau, accel, omega, n_harmonics, float(t[0]), aname, dt_uniform)
+    out = StateSignals(t, force, accel, series, frequency_hz, given, resid)
+    out.__dict__["_uniform_dt"] = dt_uniform  # seeds the cached property (already computed)
+    return out
