@@ -84,7 +84,7 @@ def progress_bar(total, desc, enabled=True, file=None):
 
 
 @contextmanager
-def dask_client(jobs=1, scheduler=None):
+def dask_client(jobs=1, scheduler=None, timeout="20s"):
     """A ``distributed.Client``: on the cluster at ``scheduler``, or on a new local cluster.
 
     Parameters
@@ -93,6 +93,8 @@ def dask_client(jobs=1, scheduler=None):
         Worker processes of the local cluster (``0``: one per core); ignored with ``scheduler``.
     scheduler : str, optional
         Address of an existing scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+    timeout : str or float, default "20s"
+        How long to try to reach the scheduler.
 
     Raises
     ------
@@ -109,7 +111,7 @@ def dask_client(jobs=1, scheduler=None):
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
         if scheduler:
             try:
-                client = Client(scheduler, timeout="20s")
+                client = Client(scheduler, timeout=timeout)
             except (OSError, TimeoutError) as exc:
                 raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from exc
             with client:

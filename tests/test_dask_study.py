@@ -1,0 +1,116 @@
+"""Parallel work on dask.distributed: the same results as in one process, whatever the workers do."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from jointid.app.parallel import dask_client, map_tasks  # noqa: E402
+from jointid.app.study import run_study  # noqa: E402
+from jointid.app.synthesis import load_simulation_config, simulate_campaign  # noqa: E402
+from jointid.app.workflow import identify_campaign  # noqa: E402
+from jointid.errors import SchedulerError  # noqa: E402
+from test_study import small_plan  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """Two single-threaded worker processes on the loopback interface, no dashboard."""
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    """The reference: a small study run in this process, without dask."""
+    out = tmp_path_factory.mktemp("serial")
+    res = run_study(small_plan(campaigns=8, seed=21), out, report=False)
+    assert not res.failed
+    return res, (out / "campaigns.jsonl").read_bytes(), (out / "study.json").read_bytes()
+
+
+def test_two_workers_give_the_serial_results_bit_for_bit(cluster, serial, tmp_path):
+    ref, lines, study = serial
+    with distributed.Client(cluster) as client:
+        res = run_study(small_plan(campaigns=8, seed=21), tmp_path, client=client, report=False)
+        assert res.n_run == 8
+        used = {ts for ts in client.run(os.getpid).values()}
+    assert len(used) == 2 and os.getpid() not in used
+    assert (tmp_path / "campaigns.jsonl").read_bytes() == lines
+    assert (tmp_path / "study.json").read_bytes() == study
+    assert res.statistics == ref.statistics
+
+
+def test_a_killed_worker_does_not_change_the_study(serial, tmp_path):
+    """A worker process killed mid-study: its campaigns run again elsewhere; same results, all campaigns."""
+    ref, lines, _ = serial
+    path = tmp_path / "campaigns.jsonl"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cl, distributed.Client(cl) as client:
+        pids = client.run(os.getpid)
+        with ThreadPoolExecutor(1) as pool:
+            running = pool.submit(run_study, small_plan(campaigns=8, seed=21), tmp_path, client=client, report=False)
+            t0 = time.monotonic()
+            while not (path.is_file() and path.read_text().count("\n") >= 1) and time.monotonic() - t0 < 120:
+                time.sleep(0.05)
+            busy = [addr for addr, tasks in client.processing().items() if tasks]
+            victim = pids[busy[0] if busy else next(iter(pids))]
+            n_before = path.read_text().count("\n")
+            os.kill(victim, signal.SIGKILL)
+            res = running.result(timeout=300)
+        assert n_before < 8  # the worker died while campaigns were still to run
+        assert victim not in client.run(os.getpid).values()
+    assert res.n_run == 8 and not res.failed
+    assert path.read_bytes() == lines
+    assert res.statistics == ref.statistics
+
+
+@pytest.mark.filterwarnings("ignore::jointid.errors.JointidWarning")
+def test_identify_on_an_existing_scheduler_matches_one_process(cluster, tmp_path):
+    from jointid.app.paper_example import paper_config
+
+    cfg = paper_config(n_frequencies=7, noise=0.01, seed=2, write_frequency=False, periods=8)
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "camp")
+    one = identify_campaign(camp).summary()
+    many = identify_campaign(camp, scheduler=cluster.scheduler_address).summary()
+    assert json.dumps(many, default=str) == json.dumps(one, default=str)
+
+
+def test_map_tasks_keeps_the_order_and_reports_each_result(cluster):
+    seen = []
+    with distributed.Client(cluster) as client:
+        out = map_tasks(divmod, [(n, 7) for n in range(20, 0, -1)], client=client,
+                        on_result=lambda i, r: seen.append(i))
+    assert out == [divmod(n, 7) for n in range(20, 0, -1)]
+    assert sorted(seen) == list(range(20))
+
+
+def test_unreachable_scheduler_is_a_clear_error():
+    with pytest.raises(SchedulerError, match="tcp://127.0.0.1:9"):
+        with dask_client(scheduler="tcp://127.0.0.1:9", timeout="0.5s"):
+            pass
+
+
+def test_serial_runs_do_not_import_dask(tmp_path):
+    """jobs=1 (the default) runs in this process: dask is not imported."""
+    code = f"""
+import sys
+from jointid.app.study import run_study
+sys.path.insert(0, {str(os.path.dirname(__file__))!r})
+from test_study import small_plan
+res = run_study(small_plan(campaigns=1), {str(tmp_path)!r}, report=False)
+assert res.n_run == 1 and not res.failed
+bad = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed'))
+assert not bad, bad
+"""
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
