@@ -223,23 +223,29 @@ STANDARD_TERMS: dict[str, Term] = {
     t.name: t
     for t in (
         Term("q", "omega1^2", lambda q, v: q, lambda q, v: np.ones_like(q), lambda q, v: np.zeros_like(q)),
-        Term("-q^3", "k3", lambda q, v: -(q**3), lambda q, v: -3 * q**2, lambda q, v: np.zeros_like(q)),
-        Term("q^2", "k2", lambda q, v: q**2, lambda q, v: 2 * q, lambda q, v: np.zeros_like(q), odd=False),
-        Term("q^5", "k5", lambda q, v: q**5, lambda q, v: 5 * q**4, lambda q, v: np.zeros_like(q)),
+        Term("-q^3", "k3", lambda q, v: -(q * q * q), lambda q, v: -3.0 * (q * q), lambda q, v: np.zeros_like(q)),
+        Term("q^2", "k2", lambda q, v: q * q, lambda q, v: 2.0 * q, lambda q, v: np.zeros_like(q), odd=False),
+        Term(
+            "q^5", "k5", lambda q, v: (q * q) * (q * q) * q, lambda q, v: 5.0 * ((q * q) * (q * q)),
+            lambda q, v: np.zeros_like(q),
+        ),
         Term("|q|q", "k_abs", lambda q, v: np.abs(q) * q, lambda q, v: 2 * np.abs(q), lambda q, v: np.zeros_like(q)),
         Term("q'", "c", lambda q, v: v, lambda q, v: np.zeros_like(v), lambda q, v: np.ones_like(v), kind="damping"),
         Term(
             "|q'|q'", "c_quad", lambda q, v: np.abs(v) * v, lambda q, v: np.zeros_like(v),
             lambda q, v: 2 * np.abs(v), kind="damping",
         ),
-        Term("q'^3", "c_cubic", lambda q, v: v**3, lambda q, v: np.zeros_like(v), lambda q, v: 3 * v**2, kind="damping"),
+        Term(
+            "q'^3", "c_cubic", lambda q, v: v * v * v, lambda q, v: np.zeros_like(v), lambda q, v: 3.0 * (v * v),
+            kind="damping",
+        ),
         # Coulomb friction; its derivative is taken as zero away from v = 0 (harmonic balance
         # then relies on the smooth terms for its Jacobian).
         Term(
             "sign(q')", "f_c", lambda q, v: _sgn(v), lambda q, v: np.zeros_like(v),
             lambda q, v: np.zeros_like(v), kind="damping",
         ),
-        Term("q^2 q'", "c_qq", lambda q, v: q**2 * v, lambda q, v: 2 * q * v, lambda q, v: q**2, kind="damping"),
+        Term("q^2 q'", "c_qq", lambda q, v: (q * q) * v, lambda q, v: 2.0 * q * v, lambda q, v: q * q, kind="damping"),
     )
 }
 
