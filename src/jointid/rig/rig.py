@@ -588,40 +588,54 @@ class VirtualRig:
         f = optimize.brentq(g, band[0] * f1, band[1] * f1, xtol=1e-10)
         return self.steady_state(f, force_amplitude)
 
-    def ringdown(self, force_amplitude, duration, acquisition: Acquisition | None = None, rng=None, *,
+    def ringdown(self, force_amplitudes, duration, acquisition: Acquisition | None = None, rng=None, *,
                  substeps: int = 8, source: str = "") -> tuple:
-        """Ring-down test: the shaker drives mode 1 in phase resonance, then is released at ``t = 0``.
+        """Ring-down tests: the shaker drives mode 1 in phase resonance, then is released at ``t = 0``.
 
-        The free decay starts on the periodic orbit of harmonic balance (the joint's
+        Each free decay starts on the periodic orbit of harmonic balance (the joint's
         hysteretic state included) and is integrated in time (:func:`~jointid.rig.reduced.integrate`,
-        ``substeps`` steps per sample) with no force.  The force cell then reads only its
-        noise; the accelerometers get theirs.
+        ``substeps`` steps per sample, all release levels at once) with no force.  The force
+        cell then reads only its noise; the accelerometers get theirs.
+
+        Parameters
+        ----------
+        force_amplitudes : float or sequence of float
+            Shaker force amplitude [N] before each release.
+        duration : float
+            Record length after the release [s].
+        acquisition : Acquisition, optional
+        rng : seed or numpy Generator
+        substeps : int
+        source : str
 
         Returns
         -------
-        record : Channels
-            ``force``, the accelerometers; ``meta`` holds the release frequency.
-        state : RigSteadyState
-            The steady state at the release.
+        tuple of (Channels, RigSteadyState)
+            Per release level: the record (``force`` and the accelerometers; ``meta`` has
+            the release force and frequency) and the steady state at the release.
         """
         from .reduced import integrate
 
         acquisition = acquisition or Acquisition()
         rng = np.random.default_rng(rng)
-        s = self.phase_resonance(force_amplitude)
+        levels = np.atleast_1d(np.asarray(force_amplitudes, float))
+        states = [self.phase_resonance(F) for F in levels]
         fs = acquisition.fs
         n = int(round(float(duration) * fs))
-        eta, vel, js = self.model.initial_conditions([s])
-        traj = integrate(self.model, [s.omega], np.zeros((1, 3)), n / fs, 1.0 / (fs * int(substeps)),
-                         initial=(0.0, eta, vel, js), sample_every=int(substeps))
-        data = {"force": acquisition.force_noise * rng.standard_normal(n)}
-        for j, name in enumerate(self.model.sensor_names):
-            data[name] = traj.accel[0, j, :n] + acquisition.accel_noise * rng.standard_normal(n)
+        eta, vel, js = self.model.initial_conditions(states)
+        traj = integrate(self.model, [s.omega for s in states], np.zeros((levels.size, 3)), n / fs,
+                         1.0 / (fs * int(substeps)), initial=(0.0, eta, vel, js), sample_every=int(substeps))
         units = {"force": "N", **{name: "m/s^2" for name in self.model.sensor_names}}
-        rec = Channels.from_arrays(data, fs=fs, units=units, source=source,
-                                   meta={"preload": self.preload, "test": "ringdown", "release_force": float(force_amplitude),
-                                         "release_frequency_hz": s.frequency_hz})
-        return rec, s
+        out = []
+        for i, (F, s) in enumerate(zip(levels, states)):
+            data = {"force": acquisition.force_noise * rng.standard_normal(n)}
+            for j, name in enumerate(self.model.sensor_names):
+                data[name] = traj.accel[i, j, :n] + acquisition.accel_noise * rng.standard_normal(n)
+            rec = Channels.from_arrays(data, fs=fs, units=units, source=source,
+                                       meta={"preload": self.preload, "test": "ringdown", "release_force": float(F),
+                                             "release_frequency_hz": s.frequency_hz})
+            out.append((rec, s))
+        return tuple(out)
 
     def random_test(self, test: RandomTest | None = None, acquisition: Acquisition | None = None, rng=None,
                     source: str = "") -> Channels:
