@@ -52,6 +52,10 @@ class IdentifySettings:
         Address of an existing dask scheduler to run the records on (overrides ``jobs``).
     progress : bool
         Show a progress bar.
+    repredict : bool
+        Re-predict every group's measured FRF with its identified model by harmonic
+        balance and compare the measured and identified hysteresis loops
+        (:mod:`jointid.app.reprediction`; ``reprediction`` in ``results.json``).
     """
 
     terms: str = "q + -q^3 + q'"
@@ -63,6 +67,7 @@ class IdentifySettings:
     jobs: int = 1
     scheduler: str | None = None
     progress: bool = False
+    repredict: bool = True
 
     def __post_init__(self):
         if self.force_gain not in ("known", "unknown"):

@@ -77,6 +77,8 @@ class CampaignResult:
     groups: tuple
     damping_laws: dict
     damping_law_errors: dict = field(default_factory=dict)
+    repredictions: tuple = ()  # Reprediction per group (jointid.app.reprediction)
+    loops: tuple = ()  # measured vs identified hysteresis loop errors per group
 
     @property
     def failed(self):
@@ -109,6 +111,7 @@ class CampaignResult:
             ],
             "n_records": len(self.records),
             "n_failed": len(self.failed),
+            "reprediction": {"groups": [r.summary() for r in self.repredictions], "loops": list(self.loops)},
         }
 
     def report(self) -> str:
@@ -254,8 +257,13 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
             perr = f"preload {g.preload}, force level {g.force_level}: {exc}"
         final_groups.append(replace(g, power_law=power, power_law_error=perr))
 
-    return CampaignResult(
+    result = CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors
     )
+    if settings.repredict:
+        from .reprediction import loop_errors, repredict_campaign
+
+        result = replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
+    return result
 
 
