@@ -1,7 +1,9 @@
 """Command line of jointid: thin wrappers around the public API.
 
-Exit codes: 0 success; 1 the run finished but some records failed; 2 bad input
-(invalid arguments, manifest or configuration); 3 an unexpected internal error.
+Exit codes: 0 success; 1 the run finished but some records failed or were flagged by the
+plausibility checks; 2 bad input (invalid arguments, manifest, configuration, record file
+or output folder), checked before the work starts where it can be; 3 an unexpected internal
+error; 130 interrupted (Ctrl-C), with the previous output set left as it was.
 """
 
 from __future__ import annotations
@@ -13,7 +15,33 @@ from pathlib import Path
 
 from .errors import JointidError, JointidWarning
 
-EXIT_OK, EXIT_PARTIAL, EXIT_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_OK, EXIT_PARTIAL, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+
+def _int_in(lo, hi):
+    """An argparse type: an integer from ``lo`` to ``hi``."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"expected an integer from {lo} to {hi}, got {value}")
+        return value
+    return parse
+
+
+def _float_in(lo, hi):
+    """An argparse type: a finite number from ``lo`` to ``hi``."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not lo <= value <= hi:  # also refuses nan
+            raise argparse.ArgumentTypeError(f"expected a finite number from {lo:g} to {hi:g}, got {text}")
+        return value
+    return parse
 
 EPILOG = """examples:
   jointid demo --out demo-out                # the virtual bolted-beam experiment, report.html
@@ -37,8 +65,9 @@ def _add_parallel_options(p, what):
 def _add_identify_options(p):
     p.add_argument("--terms", default="q + -q^3 + q'",
                    help="restoring-force terms, e.g. \"q + -q^3 + q'\" or eq22 (default: %(default)s)")
-    p.add_argument("--harmonics", type=int, default=5, help="harmonics fitted to the acceleration (default: %(default)s)")
-    p.add_argument("--damping-order", type=int, default=2, help="order of c(q_max) (default: %(default)s)")
+    p.add_argument("--harmonics", type=_int_in(1, 200), default=5,
+                   help="harmonics fitted to the acceleration (default: %(default)s)")
+    p.add_argument("--damping-order", type=_int_in(0, 10), default=2, help="order of c(q_max) (default: %(default)s)")
     p.add_argument("--weighting", choices=("noise", "none"), default="noise",
                    help="record weights in the pooled regression (default: %(default)s)")
     p.add_argument("--force-gain", choices=("known", "unknown"), default="known",
@@ -47,6 +76,8 @@ def _add_identify_options(p):
     _add_parallel_options(p, "records")
     p.add_argument("--trust-frequency", action="store_true",
                    help="use the manifest's frequency_hz as it is (by default it is checked on the force)")
+    p.add_argument("--keep-flagged", action="store_true",
+                   help="keep records flagged by the plausibility checks in the pooled fits (default: left out)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no report on stdout")
 
@@ -96,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("example", help="the seed paper's numerical example: Tables 1-3 and Figs 4-6",
                        epilog="example: jointid example --out example-out")
     p.add_argument("--out", type=Path, default=Path("example-out"), help="output folder (default: %(default)s)")
-    p.add_argument("--frequencies", type=int, default=41, help="number of excitation frequencies (default: 41)")
+    p.add_argument("--frequencies", type=_int_in(2, 10000), default=41, help="number of excitation frequencies (default: 41)")
     p.add_argument("--no-figures", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p = sub.add_parser("modal", help="FE modes, shapes and updating report of a structure description",
@@ -106,16 +137,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="folder for the mode-shape / updating / FRF figures and modal.json")
     p.add_argument("--frf", type=Path, help="a random-excitation record (CSV: time, force, responses) for H1 and a modal fit")
     p.add_argument("--response", default=None, help="response column of --frf (default: the first sensor)")
-    p.add_argument("--modes", type=int, default=3, help="modes fitted in the FRF (default: %(default)s)")
+    p.add_argument("--modes", type=_int_in(1, 50), default=3, help="modes fitted in the FRF (default: %(default)s)")
     p.add_argument("--bands", default=None,
                    help="explicit fit bands in Hz, one per mode, e.g. \"24-29,140-175\" (default: automatic picking)")
-    p.add_argument("--f-range", nargs=2, type=float, metavar=("LO", "HI"), default=None,
+    p.add_argument("--f-range", nargs=2, type=_float_in(0.0, 1e9), metavar=("LO", "HI"), default=None,
                    help="search peaks between LO and HI Hz (default: where the force spectrum excites the structure)")
-    p.add_argument("--order", type=int, default=8,
+    p.add_argument("--order", type=_int_in(0, 64), default=8,
                    help="highest model order of the pole stabilisation check (0: no check; default: %(default)s)")
-    p.add_argument("--nperseg", type=int, default=None,
+    p.add_argument("--nperseg", type=_int_in(16, 2**31), default=None,
                    help="Welch segment length of H1 in samples (default: an eighth of the record)")
-    p.add_argument("--min-coherence", type=float, default=0.8,
+    p.add_argument("--min-coherence", type=_float_in(0.0, 1.0), default=0.8,
                    help="lowest median coherence of a trusted peak's band (default: %(default)s)")
 
     p = sub.add_parser("study", help="Monte Carlo study: simulated campaigns identified and compared with the truth",
@@ -207,13 +238,17 @@ def _identify(args) -> int:
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
         weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency, jobs=args.jobs,
-        scheduler=args.scheduler, progress=not args.quiet,
+        scheduler=args.scheduler, progress=not args.quiet, keep_flagged=args.keep_flagged,
     )
     write_results(result, args.out, figures=not args.no_figures)
     if not args.quiet:
         print(result.report())
         print(f"\nresults written to {args.out}")
-    return EXIT_PARTIAL if result.failed else EXIT_OK
+    from .report.output import flagged_lines
+
+    for line in flagged_lines(result):  # also when quiet: a flagged record needs a look
+        print(line, file=sys.stderr)
+    return EXIT_PARTIAL if result.failed or result.flagged else EXIT_OK
 
 
 def _study(args) -> int:
@@ -282,7 +317,14 @@ def main(argv=None) -> int:
         if getattr(args, "quiet", False) or args.command in ("identify", "example", "demo"):
             warnings.simplefilter("ignore", JointidWarning)
         try:
+            if getattr(args, "out", None) is not None:  # refuse an unwritable --out before the work
+                from .io.results import check_output_folder
+
+                check_output_folder(args.out, replace_set=args.command == "identify")
             return COMMANDS[args.command](args)
+        except KeyboardInterrupt:
+            print(f"jointid {args.command}: interrupted; earlier results are left as they were", file=sys.stderr)
+            return EXIT_INTERRUPTED
         except JointidError as exc:
             print(f"jointid {args.command}: error: {exc}", file=sys.stderr)
             return EXIT_INPUT

@@ -3,12 +3,17 @@
 :func:`process_record` never raises for a bad record: it returns a failed
 :class:`RecordOutcome` with the reason, so one record never loses the campaign.
 :func:`process_all` runs it over the records of a campaign.
+
+Each record also goes through the plausibility checks of :mod:`jointid.signal.checks`;
+a flagged record keeps its fit but is not :attr:`~RecordOutcome.usable`, so the pooled
+fits leave it out unless :attr:`IdentifySettings.keep_flagged` is set.
+:func:`flag_group_outliers` adds the checks that compare a record with its group.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -16,9 +21,10 @@ from ..errors import IdentificationError, JointidError, JointidWarning, where
 from ..identify.fsm import ForceStateMapping, RecordFit
 from ..identify.terms import library
 from ..io.campaign import RecordSpec, read_record
+from ..signal.checks import Flag, check_live, clipping_flag, record_flags, scale_outliers, trend_outliers
 from ..signal.harmonics import StateSignals, steady_state_signals
 
-__all__ = ["IdentifySettings", "RecordOutcome", "process_record", "process_all"]
+__all__ = ["IdentifySettings", "RecordOutcome", "process_record", "process_all", "flag_group_outliers", "Flag"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +62,9 @@ class IdentifySettings:
         Re-predict every group's measured FRF with its identified model by harmonic
         balance and compare the measured and identified hysteresis loops
         (:mod:`jointid.app.reprediction`; ``reprediction`` in ``results.json``).
+    keep_flagged : bool
+        Keep records flagged by the plausibility checks in the pooled fits (by default
+        they are left out and listed under ``flagged`` in ``results.json``).
     """
 
     terms: str = "q + -q^3 + q'"
@@ -68,10 +77,17 @@ class IdentifySettings:
     scheduler: str | None = None
     progress: bool = False
     repredict: bool = True
+    keep_flagged: bool = False
 
     def __post_init__(self):
         if self.force_gain not in ("known", "unknown"):
             raise IdentificationError(f"force_gain must be 'known' or 'unknown', got {self.force_gain!r}")
+        for name, low, high in (("n_harmonics", 1, 200), ("damping_order", 0, 10), ("jobs", 0, 4096)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not low <= v <= high:
+                raise IdentificationError(f"{name} must be an integer from {low} to {high}, got {v!r}")
+        if self.weighting not in ("noise", "none"):
+            raise IdentificationError(f"weighting must be 'noise' or 'none', got {self.weighting!r}")
 
     def summary(self) -> dict:
         return {
@@ -81,6 +97,7 @@ class IdentifySettings:
             "weighting": self.weighting,
             "force_gain": self.force_gain,
             "refine_frequency": self.refine_frequency,
+            "keep_flagged": self.keep_flagged,
         }  # jobs, scheduler and progress do not change results
 
 @dataclass(frozen=True)
@@ -100,10 +117,16 @@ class RecordOutcome:
     warnings: tuple = ()
     omega1_own: float | None = None  # with an unknown force gain: the record's omega1, shared inertia held
     warning_types: tuple = field(default=(), repr=False, compare=False)  # category of each warning
+    flags: tuple = ()  # Flag of each failed plausibility check
 
     @property
     def ok(self) -> bool:
         return self.status == "ok"
+
+    @property
+    def usable(self) -> bool:
+        """Identified and not flagged by a plausibility check: enters the pooled fits by default."""
+        return self.ok and not self.flags
 
     def summary(self) -> dict:
         s = self.spec
@@ -143,6 +166,8 @@ class RecordOutcome:
         if self.modal_residual is not None:
             d["modal_residual"] = self.modal_residual
         d["warnings"] = list(self.warnings)
+        d["flags"] = [f.summary() for f in self.flags]
+        d["excitation"] = s.excitation
         return d
 
 def _context(spec: RecordSpec) -> str:
@@ -150,10 +175,18 @@ def _context(spec: RecordSpec) -> str:
 
 
 def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) -> RecordOutcome:
-    """Read, reduce and fit one record; any :class:`JointidError` becomes a failed outcome."""
+    """Read, reduce, check and fit one record; any :class:`JointidError` becomes a failed outcome.
+
+    The plausibility checks (:func:`jointid.signal.checks.record_flags`, and clipping of
+    every raw channel) attach their flags to the outcome; a constant channel fails it.
+    """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", JointidWarning)
         try:
+            if spec.excitation != "stepped-sine":
+                raise IdentificationError(
+                    f"excitation {spec.excitation!r} is not supported yet; only 'stepped-sine' records are identified"
+                )
             if to_modal is None:
                 data = read_record(spec)
                 Q, qdd, resid = data.channels["force"], data.channels["accel"], None
@@ -162,11 +195,23 @@ def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) 
                 data = read_record(spec, required=("time",) + tuple(to_modal.required_columns))
                 Q, qdd, resid = to_modal.to_modal(data.channels)
                 names = ("time", "force (modal)", "accel (modal)")
+            for name, x in data.channels.items():
+                check_live(x, name)
+            flags = [f for f in (clipping_flag(x, name) for name, x in data.channels.items()) if f is not None]
             signals = steady_state_signals(
                 data.time, Q, qdd, frequency_hz=spec.frequency_hz, n_harmonics=settings.n_harmonics, channels=names,
                 refine_frequency=settings.refine_frequency,
             )
+            flags += [f for f in record_flags(signals, channels=names[1:]) if f.name != "clipping"]
             fit = ForceStateMapping(settings.terms).fit(signals, context=_context(spec)).result_
+            if not np.all(np.isfinite(fit.coefficients)):
+                raise IdentificationError("the regression gave non-finite coefficients; the record carries no "
+                                          "usable information")
+            w2 = fit.get("omega1^2") if "omega1^2" in fit.coefficient_names else None
+            if w2 is not None and not w2 > 0:
+                flags.append(Flag("negative_stiffness", f"the linear stiffness omega1^2 = {w2:.4g} is not "
+                                                        f"positive; a flipped or mis-scaled channel",
+                                  {"omega1^2": w2}))
         except JointidError as exc:
             msg = str(exc)
             if not msg.startswith(str(spec.file)):
@@ -175,7 +220,58 @@ def process_record(spec: RecordSpec, settings: IdentifySettings, to_modal=None) 
         except Exception as exc:  # noqa: BLE001 - one record must never lose the campaign
             msg = f"{_context(spec)}unexpected {type(exc).__name__}: {exc}"
             return RecordOutcome(spec, "failed", msg, **_caught(caught))
-    return RecordOutcome(spec, "ok", None, signals, fit, modal_residual=resid, **_caught(caught))
+    return RecordOutcome(spec, "ok", None, signals, fit, modal_residual=resid, flags=tuple(flags), **_caught(caught))
+
+
+def flag_group_outliers(outcomes) -> list:
+    """Flag records whose scale is off from their group's: the checks that compare records.
+
+    Within each (preload, force level) group of identified records: an excitation frequency
+    off from the group's median by a factor of 3 or more (``time_unit``: time in ms instead
+    of s), an ``omega1`` off by a factor of 1.5 or more, or a damping coefficient ``c`` off the
+    group's trend of ``c`` against ``q_max`` by a factor of 4 or more (``scale_outlier``:
+    acceleration in g instead of m/s^2 scales the identified damping by about 9.81 and leaves
+    ``omega1`` nearly unchanged near resonance; a wrong channel).  Each limit is also at least 6 robust standard deviations of the group's
+    log values, so only a record far outside the group's own spread is flagged.  Outliers of the pooled fits themselves (records
+    the group model does not explain) are to be added here, after the pooled fit.
+
+    Returns
+    -------
+    list of RecordOutcome
+        The outcomes, with the new flags appended.
+    """
+    outcomes = list(outcomes)
+    groups = {}
+    for i, o in enumerate(outcomes):
+        if o.ok:
+            groups.setdefault(_group_id(o.spec.group), []).append(i)
+    for members in groups.values():
+        freq = scale_outliers({i: outcomes[i].signals.frequency_hz for i in members}, factor=3.0)
+        omega = scale_outliers({i: outcomes[i].fit.omega1 for i in members}, factor=1.5)
+        damping = trend_outliers({i: outcomes[i].fit.q_max for i in members},
+                                 {i: outcomes[i].fit.c for i in members if outcomes[i].fit.c is not None}, factor=4.0)
+        for i, (ratio, median) in freq.items():
+            f = Flag("time_unit", f"excitation frequency {outcomes[i].signals.frequency_hz:.6g} Hz is {ratio:.4g} "
+                                  f"times the group's median {median:.6g} Hz; time in ms instead of s?",
+                     {"frequency_hz": outcomes[i].signals.frequency_hz, "group_median_hz": median, "ratio": ratio})
+            outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
+        for i, (ratio, median) in omega.items():
+            f = Flag("scale_outlier", f"omega1 = {outcomes[i].fit.omega1:.6g} rad/s is {ratio:.4g} times the "
+                                      f"group's median {median:.6g} rad/s; acceleration in g instead of m/s^2, "
+                                      f"a wrong channel or another structure?",
+                     {"omega1": outcomes[i].fit.omega1, "group_median_omega1": median, "ratio": ratio})
+            outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
+        for i, (ratio, median) in damping.items():
+            f = Flag("scale_outlier", f"damping c = {outcomes[i].fit.c:.6g} is {ratio:.4g} times the group's trend of c "
+                                      f"against q_max ({median:.6g} there); acceleration in g instead of m/s^2 or a mis-scaled channel?",
+                     {"c": outcomes[i].fit.c, "group_trend_c": median, "ratio": ratio})
+            outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
+    return outcomes
+
+
+def _group_id(key):
+    return tuple(("num", float(v)) if isinstance(v, (int, float)) and not isinstance(v, bool) else
+                 (type(v).__name__, str(v)) for v in key)
 
 
 def _caught(caught) -> dict:

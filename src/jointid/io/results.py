@@ -17,7 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_write", "write_json", "write_csv", "to_jsonable", "atomic_savefig"]
+from ..errors import OutputError
+
+__all__ = ["atomic_write", "write_json", "write_csv", "to_jsonable", "atomic_savefig", "csv_safe",
+           "check_output_folder", "MARKER"]
+
+#: File that marks a folder as a jointid output set (holds the run id).
+MARKER = ".jointid-run"
 
 
 def _umask() -> int:
@@ -92,7 +98,27 @@ def _cell(v):
         return ""
     if isinstance(v, (float, np.floating)):
         return repr(float(v)) if math.isfinite(v) else ""
+    if isinstance(v, str):
+        return csv_safe(v)
     return v
+
+
+def csv_safe(text: str) -> str:
+    """A text cell a spreadsheet shows as text: a leading ``= + - @`` (or tab, CR) that would
+    start a formula gets a ``'`` in front; numbers such as ``-5`` stay as they are.
+
+    Examples
+    --------
+    >>> csv_safe("=HYPERLINK(1)"), csv_safe("-5"), csv_safe("preload 120")
+    ("'=HYPERLINK(1)", '-5', 'preload 120')
+    """
+    if text[:1] in ("=", "+", "-", "@", "\t", "\r"):
+        try:
+            float(text)
+            return text
+        except ValueError:
+            return "'" + text
+    return text
 
 
 def atomic_savefig(fig, path, **kw) -> Path:
@@ -101,3 +127,36 @@ def atomic_savefig(fig, path, **kw) -> Path:
     buf = io.BytesIO()
     fig.savefig(buf, format=path.suffix.lstrip(".") or "png", **kw)
     return atomic_write(path, buf.getvalue())
+
+
+def check_output_folder(out, *, replace_set=True) -> Path:
+    """Refuse an output folder that cannot be written, before any work starts.
+
+    Refused: an existing file, a path below a file, a folder without write permission
+    (or whose parent cannot take the temporary set), and, when the set replaces the
+    folder, an existing non-empty folder that is not a jointid output set (it would be
+    replaced: a campaign folder given as ``--out`` by mistake).
+
+    Raises
+    ------
+    OutputError
+        Naming the path and what is wrong.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: output folder expected, got an existing file")
+    probe = out
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe != out and not probe.is_dir():
+        raise OutputError(f"{out}: cannot create the output folder below {probe}, which is a file")
+    need = probe if probe != out else out.parent if replace_set else out
+    if not os.access(need, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK | os.X_OK)):
+        raise OutputError(f"{out}: output folder is not writable (no write permission on {need})")
+    if replace_set and out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists() \
+            and not (out / "results.json").exists():
+        raise OutputError(f"{out}: exists and holds files that are not a jointid output set; the set replaces "
+                          f"the whole folder, so give a new or empty folder")
+    return out

@@ -1,0 +1,324 @@
+"""Plausibility checks of records: named flags with the numbers that triggered them.
+
+A check never raises for data that are merely implausible: it returns a :class:`Flag`
+(``transient: first/second-half fundamental differs by 31 % (z = 85)``) that is stored
+on the record's result.  A flagged record is kept in the results but left out of the
+pooled fits by default.  Only data that cannot be used at all (a channel that is
+constant) raise a :class:`~jointid.errors.RecordError` (:func:`check_live`).
+
+Thresholds come from the noise of the record itself, so that a clean record is never
+flagged: a statistic is compared with its standard deviation under white noise
+(estimated from the residual outside the fitted harmonics) and must also exceed a small
+physical floor (a difference nobody would call a fault).
+
+Record checks (:func:`record_flags`):
+
+``clipping``
+    Flat tops: many samples exactly at the extreme value of a channel, far more than at
+    the next distinct value (the amplitude histogram of a sinusoid has no such spike).
+``dead_channel``
+    The fundamental of a channel is not above its noise (``z`` below 6), or the fitted
+    harmonics explain less than half of its variance.
+``transient``
+    The fundamental fitted to the first and to the second half of the record differ by more
+    than the noise allows (``z`` above 6) and by more than 2 %.
+``negative_input_power`` / ``channel_swap``
+    The mean power ``<Q q'>`` fed in by the force is negative beyond its noise (a passive
+    joint dissipates): a flipped sign, a timing offset, or swapped channels (named
+    ``channel_swap`` when the force is also the more distorted of the two channels).
+
+Group checks (:func:`scale_outliers`): a record whose excitation frequency or identified
+``omega1`` is off from its group's median by a large factor (time in ms instead of s,
+acceleration in g instead of m/s^2).
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import RecordError
+from .harmonics import fit_harmonics
+
+__all__ = ["Flag", "check_live", "clipping_flag", "record_flags", "scale_outliers", "trend_outliers", "Z_LIMIT"]
+
+#: Noise z-score above which a statistic is called significant (white noise: P(|z| > 6) < 1e-8).
+Z_LIMIT = 6.0
+#: Smallest relative change of the fundamental between the two halves that counts as a transient.
+TRANSIENT_FLOOR = 0.02
+#: Smallest fraction of a channel's variance its fitted harmonics must explain.
+MIN_EXPLAINED = 0.5
+#: Clipping: share of samples at the extremes, and how many times the next level's count.
+CLIP_FRACTION = 0.005
+CLIP_RATIO = 4.0
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A named plausibility flag with the numbers that triggered it.
+
+    Attributes
+    ----------
+    name : str
+        Short name (``"transient"``, ``"clipping"``...).
+    message : str
+        One sentence with the numbers and the likely cause.
+    values : dict
+        The numbers (JSON-safe floats and strings).
+    """
+
+    name: str
+    message: str
+    values: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        return {"name": self.name, "message": self.message,
+                "values": {k: (float(v) if isinstance(v, (int, float, np.floating, np.integer)) and
+                               not isinstance(v, bool) else v) for k, v in self.values.items()}}
+
+    def report(self) -> str:
+        return f"{self.name}: {self.message}"
+
+    def _repr_html_(self) -> str:
+        return f"<b>{html.escape(self.name)}</b>: {html.escape(self.message)}"
+
+
+def check_live(x, channel: str) -> None:
+    """Raise a :class:`RecordError` when a channel is constant (a stuck or dead sensor).
+
+    Examples
+    --------
+    >>> check_live(np.full(10, 9.81), "accel")
+    Traceback (most recent call last):
+    ...
+    jointid.errors.RecordError: channel 'accel': constant (9.81 at every sample); a stuck or dead sensor
+    """
+    x = np.asarray(x, dtype=float)
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):
+        value = float(np.median(x))
+        what = "zero at every sample" if value == 0 else f"constant ({value:.6g} at every sample)"
+        raise RecordError(f"channel {channel!r}: {what}; a stuck or dead sensor")
+
+
+def clipping_flag(x, channel: str) -> Flag | None:
+    """``clipping`` when a channel sits at its extreme values far more than a sinusoid would.
+
+    The samples equal to the maximum (and to the minimum) are counted and compared with the
+    samples at the next distinct level; a clipped signal piles up at the limit, a sampled or
+    quantised sinusoid does not.
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    worst = None
+    for side, sign in (("maximum", 1.0), ("minimum", -1.0)):
+        y = sign * x
+        top = y.max()
+        at_top = int(np.count_nonzero(y == top))
+        below = y[y < top]
+        nxt = int(np.count_nonzero(below == below.max())) if below.size else 0
+        frac = at_top / n
+        if at_top >= 5 and frac >= CLIP_FRACTION and at_top >= CLIP_RATIO * max(nxt, 1):
+            if worst is None or frac > worst[1]:
+                worst = (side, frac, at_top, nxt, sign * top)
+    if worst is None:
+        return None
+    side, frac, at_top, nxt, level = worst
+    return Flag("clipping", f"channel {channel!r}: {at_top} samples ({100 * frac:.1f} %) sit exactly at the {side} "
+                            f"{level:.6g} (next level: {nxt}); clipped or saturated",
+                {"channel": channel, "fraction_at_limit": frac, "samples_at_limit": at_top,
+                 "samples_at_next_level": nxt, "limit": level})
+
+
+def _fundamental(series) -> complex:
+    c = series.coefficients
+    return complex(c[1], c[2])
+
+
+def _dead_flag(series, resid_rms, x, n, channel) -> Flag | None:
+    """``dead_channel`` from the fundamental's noise z-score and the variance explained."""
+    X1 = abs(_fundamental(series))
+    sigma = max(float(resid_rms), 1e-300)
+    z = X1 / (sigma * np.sqrt(2.0 / n))
+    var = float(np.var(x))
+    explained = 1.0 - resid_rms**2 / var if var > 0 else 0.0
+    if z < Z_LIMIT or explained < MIN_EXPLAINED:
+        return Flag("dead_channel", f"channel {channel!r}: the excitation frequency is not above the noise "
+                                    f"(fundamental {X1:.3g}, noise z = {z:.2f}, harmonics explain "
+                                    f"{100 * explained:.1f} % of the variance); a dead or disconnected sensor",
+                    {"channel": channel, "fundamental": X1, "z": z, "explained": explained})
+    return None
+
+
+def _halves_flag(t, x, omega, H, t0, channel) -> tuple[float, float, float]:
+    """Relative change and z-score of the fundamental between the two halves of a record."""
+    n = t.size
+    h = n // 2
+    s1, r1 = fit_harmonics(t[:h], x[:h], omega, H, channel=channel, t0=t0)
+    s2, r2 = fit_harmonics(t[h:], x[h:], omega, H, channel=channel, t0=t0)
+    X1, X2 = _fundamental(s1), _fundamental(s2)
+    # each cos/sin coefficient of a half has variance 2 sigma^2 / (n/2) under white noise
+    sd = np.sqrt(2.0 * (r1**2 / h + r2**2 / (n - h)))
+    d = abs(X2 - X1)
+    ref = max(abs(X1), abs(X2), 1e-300)
+    return d / ref, d / max(sd, 1e-300), abs(X2) / max(abs(X1), 1e-300)
+
+
+def record_flags(signals, *, channels=("force", "accel"), n_harmonics=None) -> tuple:
+    """Plausibility flags of one steady-state record.
+
+    Parameters
+    ----------
+    signals : StateSignals
+        The record reduced to its state signals (its force and measured acceleration are used).
+    channels : (str, str)
+        Names of the force and acceleration channels in the messages.
+    n_harmonics : int, optional
+        Harmonics fitted to the force (default: those of the acceleration fit).
+
+    Returns
+    -------
+    tuple of Flag
+        Empty for a plausible record.
+    """
+    t, Q, a = signals.t, signals.force, signals.accel_measured
+    n = t.size
+    acc = signals.acceleration
+    H = n_harmonics or acc.n_harmonics
+    omega = signals.omega
+    fQ, rQ = fit_harmonics(t, Q, omega, H, channel=channels[0], t0=acc.t0)
+    flags = []
+    for ch, x in zip(channels, (Q, a)):
+        f = clipping_flag(x, ch)
+        if f is not None:
+            flags.append(f)
+    for ch, series, r, x in ((channels[0], fQ, rQ, Q), (channels[1], acc, signals.accel_residual_rms, a)):
+        f = _dead_flag(series, r, x, n, ch)
+        if f is not None:
+            flags.append(f)
+    if any(f.name == "dead_channel" for f in flags):
+        return tuple(flags)  # the other checks compare signals that are not there
+
+    # steady state: the fundamental of the first and second halves
+    if n >= 8 * (2 * H + 1):
+        worst = None
+        for ch, x in zip(channels, (Q, a)):
+            rel, z, ratio = _halves_flag(t, x, omega, H, acc.t0, ch)
+            if z > Z_LIMIT and rel > TRANSIENT_FLOOR and (worst is None or rel > worst[1]):
+                worst = (ch, rel, z, ratio)
+        if worst is not None:
+            ch, rel, z, ratio = worst
+            flags.append(Flag("transient", f"channel {ch!r}: the fundamental of the second half differs from the "
+                                           f"first half's by {100 * rel:.1f} % (amplitude ratio {ratio:.3f}, noise "
+                                           f"z = {z:.1f}); not in steady state",
+                              {"channel": ch, "relative_change": rel, "amplitude_ratio": ratio, "z": z}))
+
+    # input power <Q q'> from the harmonic coefficients, and its noise
+    V = signals.velocity.coefficients
+    F = fQ.coefficients
+    k = np.arange(1, H + 1)
+    P = 0.5 * float(np.dot(F[1:], V[1:]))
+    sa = signals.accel_residual_rms
+    var = rQ**2 * float(np.dot(V[1:], V[1:])) / (2 * n)
+    Fk2 = F[1::2] ** 2 + F[2::2] ** 2
+    var += float(np.sum(Fk2 * sa**2 / (2 * n * (k * omega) ** 2)))
+    se = np.sqrt(var)
+    if P < -Z_LIMIT * se:
+        thd = _distortion(F), _distortion(acc.coefficients)
+        swapped = thd[0] > 2.0 * thd[1]
+        name = "channel_swap" if swapped else "negative_input_power"
+        cause = (f"the force is the more distorted channel (distortion {thd[0]:.3g} vs {thd[1]:.3g}): "
+                 f"force and acceleration swapped?" if swapped else
+                 "a flipped sign of the force or acceleration, or a timing offset between them")
+        flags.append(Flag(name, f"mean input power <Q q'> = {P:.4g} is negative (noise z = {P / se:.1f}); a passive "
+                                f"joint dissipates: {cause}",
+                          {"input_power": P, "input_power_stderr": se, "force_distortion": thd[0],
+                           "accel_distortion": thd[1]}))
+    return tuple(flags)
+
+
+def _distortion(coefficients) -> float:
+    """Harmonics 2..H relative to the fundamental (total harmonic distortion)."""
+    c = np.asarray(coefficients, float)
+    amp = np.hypot(c[1::2], c[2::2])
+    return float(np.sqrt(np.sum(amp[1:] ** 2)) / max(amp[0], 1e-300))
+
+
+def scale_outliers(values, *, factor: float, min_records: int = 3) -> dict:
+    """Members of a group whose value is off from the group's median by a large factor.
+
+    Parameters
+    ----------
+    values : mapping key -> float
+        Positive values of one group (non-finite or non-positive values are ignored).
+    factor : float
+        Smallest ratio to the median that is flagged (also at least 6 robust standard
+        deviations of the log values, so a group with a wide spread flags only real outliers).
+    min_records : int
+        Groups with fewer valid values are not checked.
+
+    Returns
+    -------
+    dict key -> (ratio to the median, median)
+
+    Examples
+    --------
+    >>> list(scale_outliers({0: 26.4, 1: 26.5, 2: 26.6, 3: 0.0265}, factor=3.0))
+    [3]
+    """
+    keys = [k for k, v in values.items() if v is not None and np.isfinite(v) and v > 0]
+    if len(keys) < min_records:
+        return {}
+    logs = np.log([values[k] for k in keys])
+    med = float(np.median(logs))
+    mad = 1.4826 * float(np.median(np.abs(logs - med)))
+    limit = max(np.log(factor), Z_LIMIT * mad)
+    median = float(np.exp(med))
+    return {k: (float(values[k] / median), median)
+            for k, lv in zip(keys, logs) if abs(lv - med) > limit}
+
+
+def trend_outliers(x, y, *, factor: float, min_records: int = 5) -> dict:
+    """Members of a group far off the group's power-law trend ``y ~ x^p``.
+
+    A straight line through ``(log x, log y)`` is fitted robustly (Theil-Sen: the median of the
+    pairwise slopes, then the median intercept) and a member whose ``y`` is off the line by
+    more than ``factor`` (and by more than 6 robust standard deviations of the residuals) is
+    returned.  Used for the damping coefficient against the amplitude: ``c`` changes with
+    ``q_max`` along the damping law, but a record in other units falls off that law.
+
+    Parameters
+    ----------
+    x, y : mapping key -> float
+        Positive values (others are ignored); the keys of ``y`` are the members.
+    factor : float
+        Smallest ratio to the trend that is flagged.
+
+    Returns
+    -------
+    dict key -> (ratio to the trend, trend value)
+
+    Examples
+    --------
+    >>> q = {i: 1e-3 * (i + 1) for i in range(8)}
+    >>> c = {i: 0.1 + 50 * q[i] for i in range(8)}
+    >>> c[3] *= 9.81
+    >>> list(trend_outliers(q, c, factor=3.0))
+    [3]
+    """
+    keys = [k for k in y if k in x and all(v is not None and np.isfinite(v) and v > 0 for v in (x[k], y[k]))]
+    if len(keys) < min_records:
+        return {}
+    lx = np.log([x[k] for k in keys])
+    ly = np.log([y[k] for k in keys])
+    i, j = np.triu_indices(len(keys), 1)
+    dx = lx[j] - lx[i]
+    ok = np.abs(dx) > 1e-12
+    slope = float(np.median((ly[j] - ly[i])[ok] / dx[ok])) if ok.any() else 0.0
+    r = ly - slope * lx
+    r = r - np.median(r)
+    mad = 1.4826 * float(np.median(np.abs(r)))
+    limit = max(np.log(factor), Z_LIMIT * mad)
+    return {k: (float(np.exp(rk)), float(y[k] / np.exp(rk))) for k, rk in zip(keys, r) if abs(rk) > limit}
