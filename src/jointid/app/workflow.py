@@ -21,7 +21,7 @@ from ..identify.gain import PooledGainForceStateMapping
 from ..identify.laws import PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
 from ..identify.terms import library
 from ..io.campaign import Campaign, load_campaign
-from .records import IdentifySettings, RecordOutcome, process_all, process_record
+from .records import IdentifySettings, RecordOutcome, flag_group_outliers, process_all, process_record
 
 __all__ = ["IdentifySettings", "RecordOutcome", "GroupResult", "CampaignResult", "identify_campaign", "process_record"]
 
@@ -84,6 +84,12 @@ class CampaignResult:
     def failed(self):
         return [r for r in self.records if not r.ok]
 
+    @property
+    def flagged(self):
+        """Identified records flagged by a plausibility check (left out of the pooled fits unless
+        ``settings.keep_flagged``)."""
+        return [r for r in self.records if r.ok and r.flags]
+
     def group(self, preload, force_level) -> GroupResult:
         for g in self.groups:
             if g.preload == preload and g.force_level == force_level:
@@ -111,6 +117,8 @@ class CampaignResult:
             ],
             "n_records": len(self.records),
             "n_failed": len(self.failed),
+            "flagged": [{"index": r.spec.index, "file": r.spec.file, "flags": [f.name for f in r.flags],
+                         "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
             "reprediction": {"groups": [r.summary() for r in self.repredictions], "loops": list(self.loops)},
         }
 
@@ -172,7 +180,8 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
 
         to_modal = Structure.from_mapping(campaign.structure, source=str(campaign.root / "campaign.toml"))
 
-    outcomes = process_all(campaign.records, settings, to_modal)
+    outcomes = flag_group_outliers(process_all(campaign.records, settings, to_modal))
+    use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # records of the pooled fits
     for o in outcomes:
         for w, category in zip(o.warnings, o.warning_types):
             warnings.warn(w, category, stacklevel=3)  # 3: past the single-threaded wrapper
@@ -180,13 +189,20 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     if failed:
         listing = "\n  ".join(o.error for o in failed[:10]) + ("\n  ..." if len(failed) > 10 else "")
         warnings.warn(f"{len(failed)} of {len(outcomes)} records failed:\n  {listing}", JointidWarning, stacklevel=3)
+    flagged = [o for o in outcomes if o.ok and o.flags]
+    if flagged:
+        listing = "\n  ".join(f"{o.spec.file} [record {o.spec.index}]: " + "; ".join(f.report() for f in o.flags)
+                              for o in flagged[:10]) + ("\n  ..." if len(flagged) > 10 else "")
+        kept = "kept in" if settings.keep_flagged else "left out of"
+        warnings.warn(f"{len(flagged)} of {len(outcomes)} records flagged ({kept} the pooled fits):\n  {listing}",
+                      JointidWarning, stacklevel=3)
 
     # groups: pooled regression and band average
     keys = sorted({o.spec.group for o in outcomes}, key=lambda k: (_group_key(k[0]), _group_key(k[1])))
     groups = []
     outcomes = list(outcomes)
     for key in keys:
-        members = [i for i, o in enumerate(outcomes) if o.spec.group == key and o.ok]
+        members = [i for i, o in enumerate(outcomes) if o.spec.group == key and use[i]]
         pooled = band = None
         gain = None
         if members:
@@ -219,7 +235,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     # damping law per preload over all its records (pooled c)
     laws, law_errors = {}, {}
     for preload in sorted({k[0] for k in keys}, key=_group_key):
-        idx = [i for i, o in enumerate(outcomes) if o.ok and o.spec.preload == preload and o.c_pooled is not None]
+        idx = [i for i, o in enumerate(outcomes) if use[i] and o.spec.preload == preload and o.c_pooled is not None]
         try:
             laws[preload] = fit_damping_law(
                 [outcomes[i].fit.q_max for i in idx],
@@ -235,7 +251,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     final_groups = []
     for g in groups:
         law = laws.get(g.preload)
-        idx = [i for i, o in enumerate(outcomes) if o.ok and o.spec.group == (g.preload, g.force_level)]
+        idx = [i for i, o in enumerate(outcomes) if use[i] and o.spec.group == (g.preload, g.force_level)]
         F, U = [], []
         if g.pooled is not None and idx:
             w1 = g.pooled.omega1
