@@ -35,7 +35,7 @@ from ..errors import JointidError, JointidWarning
 from ..rig.rig import parabolic_peak
 from ..signal.harmonics import fit_harmonics
 
-__all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "loop_errors"]
+__all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "group_loops", "loop_errors"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +69,14 @@ class Reprediction:
         Frequencies of the folds (turning points) of the re-predicted curve.
     stable : ndarray of bool, optional
         Stability of each curve point.
+    peak_resolved : bool
+        Whether the measured dwells resolve the peak (spacing about the largest dwell at
+        most half the predicted -3 dB width); if not, the reference peak is the largest
+        dwell itself and the peak errors are bounded by the dwell spacing, not by the model.
+    bandwidth_hz : float
+        Predicted -3 dB width of the peak [Hz].
+    dwell_spacing_hz : float
+        Largest spacing of the measured points about the largest one [Hz].
     """
 
     force_level: float
@@ -86,6 +94,9 @@ class Reprediction:
     point_errors: np.ndarray | None = None
     folds_hz: tuple = ()
     stable: np.ndarray | None = None
+    peak_resolved: bool = True
+    bandwidth_hz: float = float("nan")
+    dwell_spacing_hz: float = float("nan")
 
     def __post_init__(self):
         for name in ("frequency_hz", "predicted", "measured_frequency_hz", "measured", "point_errors", "stable"):
@@ -126,6 +137,9 @@ class Reprediction:
             "forcing": self.forcing,
             "quantity": self.quantity,
             "reference": self.reference_kind,
+            "peak_resolved": self.peak_resolved,
+            "bandwidth_hz": self.bandwidth_hz,
+            "dwell_spacing_hz": self.dwell_spacing_hz,
             "peak_predicted": {"frequency_hz": self.peak_predicted[0], "magnitude": self.peak_predicted[1]},
             "peak_reference": {"frequency_hz": self.peak_reference[0], "magnitude": self.peak_reference[1]},
             "peak_frequency_error_percent": self.peak_frequency_error_percent,
@@ -147,6 +161,9 @@ class Reprediction:
         return (f"preload {self.preload}, F = {self.force_level}: peak {self.peak_predicted[0]:.4f} Hz "
                 f"({self.peak_frequency_error_percent:+.3f} %), magnitude {self.peak_predicted[1]:.4g} "
                 f"({self.peak_amplitude_error_percent:+.2f} %) vs {self.reference_kind}"
+                + ("" if self.peak_resolved else
+                   f" (largest dwell: spacing {self.dwell_spacing_hz:.3g} Hz does not resolve the "
+                   f"{self.bandwidth_hz:.3g} Hz peak)")
                 + (f"; measured points rms {pts:.2f} %" if pts is not None else "")
                 + (f"; folds at {', '.join(f'{f:.3f}' for f in self.folds_hz)} Hz" if self.folds_hz else ""))
 
@@ -289,7 +306,19 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
             peak_pred = (float(f_all[np.argmax(m_all)]), float(np.max(m_all)))
     except JointidError:
         pass
-    peak_ref = exact.peak() if exact is not None else parabolic_peak(fm, Hm)
+    # the measured peak: a parabola through the three largest dwells when they resolve the
+    # predicted -3 dB band, else the largest dwell itself (a resolution-limited reference)
+    above = f_all[m_all >= peak_pred[1] / np.sqrt(2.0)]
+    width = float(above.max() - above.min()) if above.size > 1 else 0.0
+    km = int(np.argmax(Hm))
+    spacing = float(np.max(np.diff(fm[max(km - 1, 0): km + 2]))) if fm.size > 1 else np.inf
+    resolved = exact is not None or spacing <= 0.5 * width
+    if exact is not None:
+        peak_ref = exact.peak()
+    elif resolved:
+        peak_ref = parabolic_peak(fm, Hm)
+    else:
+        peak_ref = (float(fm[km]), float(Hm[km]))
     # the model at each measured point's own frequency and forcing
     errs = []
     if measured is not None and len(fm) == len(members):
@@ -299,7 +328,8 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
             errs.append(scale * rp.omega[0] ** 2 * rp.amplitude[0] / Qq / Hq - 1.0)
     qty = quantity or ("modal acceleration / modal force" if scale == 1.0 else "response / force")
     return Reprediction(float(group.force_level), model, f_all, m_all, fm, Hm, peak_pred, tuple(peak_ref), exact,
-                        group.preload, Q, qty, np.asarray(errs) if errs else None, folds, stable)
+                        group.preload, Q, qty, np.asarray(errs) if errs else None, folds, stable, bool(resolved),
+                        width, spacing)
 
 
 def repredict_campaign(result, **kw) -> tuple:
@@ -321,44 +351,63 @@ def repredict_campaign(result, **kw) -> tuple:
     return tuple(out)
 
 
-def loop_errors(result) -> list:
-    """Measured vs identified hysteresis loops of each group's largest-amplitude record.
+def group_loops(result, group):
+    """Measured and identified hysteresis loops of a group's largest-amplitude record.
 
     The identified model is the group's shared ``omega1^2`` and ``k3`` with the record's
     own pooled damping; with an unknown force gain the force is put in gain-free units
-    (times the identified gain) first.  Returns one dict per group: ``file``,
-    ``frequency_hz``, ``q_max``, and the relative rms difference ``rms_difference`` of
-    the filtered and unfiltered loops, with their enclosed areas.
+    (times the identified gain) first, so that every campaign has its loops.
+
+    Returns
+    -------
+    (RecordOutcome, {"filtered": HysteresisLoop or str, "unfiltered": ...}) or None
+        A loop that cannot be formed is replaced by the reason.
     """
     from ..identify.hysteresis import hysteresis_loop
 
+    members = _group_members(result, group)
+    if group.pooled is None or not members:
+        return None
+    j = int(np.argmax([o.fit.q_max for o in members]))
+    best = members[j]
+    theta = []
+    for n in best.fit.coefficient_names:
+        if n in group.pooled.shared_names:
+            theta.append(group.pooled.get(n))
+        elif n in group.pooled.own_names:
+            theta.append(group.pooled.get(n)[j])
+        else:
+            theta.append(0.0)
+    signals = best.signals
+    gain = _gain(group)
+    if gain != 1.0:
+        signals = replace(signals, force=np.asarray(signals.force) * gain)
+    loops = {}
+    for filt in (True, False):
+        try:
+            loops["filtered" if filt else "unfiltered"] = hysteresis_loop(signals, best.fit.terms,
+                                                                          np.asarray(theta, float), filtered=filt)
+        except (JointidError, ValueError) as exc:
+            loops["filtered" if filt else "unfiltered"] = str(exc)
+    return best, loops
+
+
+def loop_errors(result) -> list:
+    """Measured vs identified hysteresis loops (:func:`group_loops`) of every group, as numbers.
+
+    Returns one dict per group: ``file``, ``frequency_hz``, ``q_max``, and for the
+    ``filtered`` and ``unfiltered`` loops the relative rms difference
+    ``rms_difference`` and the enclosed areas (or an ``error``).
+    """
     rows = []
     for g in result.groups:
-        members = _group_members(result, g)
-        if g.pooled is None or not members:
+        found = group_loops(result, g)
+        if found is None:
             continue
-        j = int(np.argmax([o.fit.q_max for o in members]))
-        best = members[j]
-        theta = []
-        for n in best.fit.coefficient_names:
-            if n in g.pooled.shared_names:
-                theta.append(g.pooled.get(n))
-            elif n in g.pooled.own_names:
-                theta.append(g.pooled.get(n)[j])
-            else:
-                theta.append(0.0)
-        signals = best.signals
-        gain = _gain(g)
-        if gain != 1.0:
-            signals = replace(signals, force=np.asarray(signals.force) * gain)
+        best, loops = found
         row = {"preload": g.preload, "force_level": g.force_level, "file": best.spec.file,
-               "frequency_hz": float(signals.frequency_hz), "q_max": float(best.fit.q_max)}
-        for filt in (True, False):
-            try:
-                loop = hysteresis_loop(signals, best.fit.terms, np.asarray(theta, float), filtered=filt)
-            except (JointidError, ValueError) as exc:
-                row["filtered" if filt else "unfiltered"] = {"error": str(exc)}
-                continue
-            row["filtered" if filt else "unfiltered"] = loop.summary()
+               "frequency_hz": float(best.signals.frequency_hz), "q_max": float(best.fit.q_max)}
+        for key, loop in loops.items():
+            row[key] = {"error": loop} if isinstance(loop, str) else loop.summary()
         rows.append(row)
     return rows

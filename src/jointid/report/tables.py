@@ -97,6 +97,16 @@ def campaign_report(result) -> str:
     for g in result.groups:
         txt = g.power_law.report() if g.power_law else (g.power_law_error or "-")
         out.append(f"  preload {g.preload}, F {g.force_level}: {txt}")
+    reps = getattr(result, "repredictions", ())
+    if reps:
+        out.append("")
+        out.append("Re-predicted FRFs (identified model by harmonic balance vs the measured dwells):")
+        out += [f"  {r.report()}" for r in reps]
+    for row in getattr(result, "loops", ()):
+        d = row.get("filtered") or {}
+        if "rms_difference" in d:
+            out.append(f"  loops, preload {row['preload']}, F {row['force_level']} ({row['file']}): measured vs "
+                       f"identified rms difference {100 * d['rms_difference']:.1f} % (filtered)")
     if result.failed:
         out.append("")
         out.append("Failed records:")

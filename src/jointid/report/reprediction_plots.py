@@ -1,0 +1,118 @@
+"""Re-predicted nonlinear FRFs over the measured points (seed Fig 10) for any campaign.
+
+:func:`plot_reprediction` draws, for the groups of one preload, the measured points of
+each force level (markers) and the identified model's harmonic-balance curve (line),
+with the folds marked and the peak errors in the legend.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .identify_plots import new_axes
+
+__all__ = ["plot_reprediction", "reprediction_rows", "reprediction_figures"]
+
+_MARKERS = ("+", "o", "s", "^", "v", "D", "x")
+
+
+def plot_reprediction(repredictions, ax=None, *, title=None, show_exact=True):
+    """Measured nonlinear FRF points and the re-predicted curves.
+
+    Parameters
+    ----------
+    repredictions : sequence of Reprediction
+        Typically the groups of one preload.
+    ax : Axes, optional
+    title : str, optional
+    show_exact : bool
+        Also draw an exact reference curve where a re-prediction carries one.
+
+    Returns
+    -------
+    Axes
+    """
+    ax = new_axes(ax)
+    for i, r in enumerate(sorted(repredictions, key=lambda r: float(r.force_level))):
+        pts = ax.plot(r.measured_frequency_hz, r.measured, _MARKERS[i % len(_MARKERS)], ms=5, ls="none",
+                      label=f"measured, level {r.force_level:g}")
+        color = pts[0].get_color()
+        pts_err = r.point_rms_error_percent
+        label = "identified (HBM)" + (f": points rms {pts_err:.2f} %" if pts_err is not None else "")
+        if r.peak_resolved:
+            label += (f", peak {r.peak_frequency_error_percent:+.3f} % in f, "
+                      f"{r.peak_amplitude_error_percent:+.2f} % in |H|")
+        ax.plot(r.frequency_hz, r.predicted, "-", lw=1.1, color=color, label=label)
+        for f_fold in r.folds_hz:
+            k = int(np.argmin(np.abs(r.frequency_hz - f_fold)))
+            ax.plot([r.frequency_hz[k]], [r.predicted[k]], "x", color=color, ms=7)
+        if show_exact and r.exact is not None:
+            ax.plot(r.exact.frequency_hz, np.abs(r.exact.H), ":", lw=0.9, color="0.35")
+    ax.set_xlabel("excitation frequency [Hz]")
+    ax.set_ylabel(repredictions[0].quantity if repredictions else "|response / force|")
+    if title:
+        ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=6.5)
+    return ax
+
+
+def reprediction_rows(result) -> list:
+    """One row per re-predicted group: peak errors, point errors, folds (for tables)."""
+    rows = []
+    for r in getattr(result, "repredictions", ()):
+        rows.append({
+            "preload": r.preload,
+            "force_level": r.force_level,
+            "forcing": r.forcing,
+            "f_peak_predicted": r.peak_predicted[0],
+            "f_peak_reference": r.peak_reference[0],
+            "f_peak_error_%": r.peak_frequency_error_percent,
+            "H_peak_error_%": r.peak_amplitude_error_percent,
+            "points_rms_error_%": r.point_rms_error_percent,
+            "reference": r.reference_kind,
+            "folds_hz": ", ".join(f"{f:.4f}" for f in r.folds_hz),
+        })
+    for row in getattr(result, "loops", ()):
+        for r in rows:
+            if r["preload"] == row["preload"] and r["force_level"] == row["force_level"]:
+                for key in ("filtered", "unfiltered"):
+                    d = row.get(key) or {}
+                    r[f"loop_rms_{key}"] = d.get("rms_difference")
+    return rows
+
+
+def reprediction_figures(result) -> list:
+    """``(file name, caption, figure)``: the re-predicted FRFs of each preload, and the
+    hysteresis loops of the groups whose force gain was identified (the others' loops are
+    drawn with the campaign's figures)."""
+    from ..app.reprediction import group_loops
+    from .identify_plots import plot_hysteresis
+    from .output import slug
+
+    out = []
+    reps = list(getattr(result, "repredictions", ()))
+    for p in dict.fromkeys(r.preload for r in reps):
+        mine = [r for r in reps if r.preload == p]
+        ax = plot_reprediction(mine, title=f"re-predicted nonlinear FRF, preload {str(p).replace('$', '')}")
+        out.append((f"reprediction_{slug(p)}.png",
+                    f"nonlinear FRFs of preload {p}: measured dwells (markers) and the identified model solved by "
+                    "harmonic balance (lines); legend: peak errors", ax.figure))
+    for g in result.groups:
+        if g.gain is None:
+            continue
+        found = group_loops(result, g)
+        if found is None:
+            continue
+        best, loops = found
+        drawn = [loop for loop in loops.values() if not isinstance(loop, str)]
+        if not drawn:
+            continue
+        axes = np.atleast_1d(new_axes(None, figsize=(9.0, 3.8), ncols=len(drawn)))
+        for ax, loop in zip(axes, drawn):
+            plot_hysteresis(loop, ax=ax, show_identified=True)
+            ax.set_title(f"rms difference {100 * loop.rms_difference:.1f} %", fontsize=8)
+        out.append((f"hysteresis_{slug(g.preload)}_F{slug(g.force_level)}.png",
+                    f"hysteresis loops (gain-free units) of {best.spec.file}, preload {g.preload}, "
+                    f"level {g.force_level}", axes[0].figure))
+    return out
