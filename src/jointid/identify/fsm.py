@@ -518,14 +518,15 @@ class PooledForceStateMapping:
         weights = record_weights(fits, self.weighting)
         sol = pooled_solve([(f.reduced, f.n_samples) for f in fits], shared_idx, own_idx, nt, weights)
         order = shared_idx + own_idx
-        V_list = []
+        V_list, g_list = [], []
         for r, f in enumerate(fits):
             theta = np.empty(nt)
             theta[shared_idx] = sol.shared
             theta[own_idx] = sol.own[r]
             V = f.scores.covariance(theta)
             V_list.append(V[np.ix_(order, order)])
-        cov = pooled_covariance(sol, V_list, ns)
+            g_list.append(f.scores.score_q_max_covariance(theta)[order])
+        cov = pooled_covariance(sol, V_list, ns, g_list, [f.scores.q_max_variance() for f in fits])
         shared_se = np.sqrt(np.clip(np.diag(cov.shared), 0.0, None))
         own_se = np.sqrt(np.clip(np.diagonal(cov.own, axis1=1, axis2=2), 0.0, None)).reshape(nr, no)
         n_total = sol.n_samples

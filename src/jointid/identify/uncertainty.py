@@ -144,6 +144,7 @@ class RecordScores:
     sigma_accel: float
     n_samples: int
     filtered: bool = True
+    force_coefficients: np.ndarray | None = field(default=None, repr=False)  # harmonic fit of the force
 
     def score_terms(self, theta, dtheta_dqmax=None) -> np.ndarray:
         """``X^T D`` (``(p, m)``) in the record's term columns for coefficients ``theta``.
@@ -168,6 +169,15 @@ class RecordScores:
             P = self.phi_b @ Gi @ S.T
             V = V + sa2 * (self.gram - P - P.T)
         return 0.5 * (V + V.T)
+
+    def q_max_variance(self) -> float:
+        """Variance of ``q_max`` from the acceleration noise in the fitted harmonics."""
+        return float(self.sigma_accel**2 * self.peak @ scaled_inverse(self.basis_gram) @ self.peak)
+
+    def score_q_max_covariance(self, theta) -> np.ndarray:
+        """``cov(score, q_max)`` in the record's term columns (both move with the harmonic fit)."""
+        S = self.score_terms(theta)
+        return self.sigma_accel**2 * (S @ scaled_inverse(self.basis_gram) @ self.peak)
 
     def effective_sigma(self, theta, dtheta_dqmax=None) -> float:
         """White-noise level that would carry the same information: ``sqrt(tr(M^-1 V) / p)``."""
@@ -211,14 +221,16 @@ def record_scores(lib, signals: StateSignals, filtered=True) -> RecordScores:
     n = signals.t.size
     dof = max(n - m, 1)
     try:
-        rss_F = max(FF - float(bF @ linalg.solve(G, bF, assume_a="pos")), 0.0)
+        coef_F = linalg.solve(G, bF, assume_a="pos")
+        rss_F = max(FF - float(bF @ coef_F), 0.0)
     except (linalg.LinAlgError, ValueError):
-        rss_F = float("nan")
+        coef_F, rss_F = np.full(m, np.nan), float("nan")
     Tv = _integration_map(omega, H)
     Tq = Tv @ Tv
     return RecordScores(
         gram, phi_b, dq_b, dv_b, G, Tq, Tv, _peak_direction(signals.displacement.coefficients, Tq),
         float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n), bool(filtered),
+        coef_F,
     )
 
 
@@ -241,6 +253,8 @@ class PooledCovariance:
     K: np.ndarray = field(repr=False)
     F: np.ndarray = field(repr=False)
     own_only: np.ndarray = field(repr=False)  # M_oo^-1 V_oo M_oo^-1 of each record
+    own_q_max: np.ndarray | None = field(default=None, repr=False)  # cov(own_r, q_max_r) (n_records, no)
+    q_max_variance: np.ndarray | None = field(default=None, repr=False)  # (n_records,)
 
     def own_factor(self, j, records=None):
         """Covariance of own coefficient ``j`` over ``records`` as ``diag(d) + U W U^T``."""
@@ -252,11 +266,14 @@ class PooledCovariance:
         return LowRankCovariance(d, U, W)
 
 
-def pooled_covariance(solution, V_list, n_shared) -> PooledCovariance:
+def pooled_covariance(solution, V_list, n_shared, g_list=None, q_var=None) -> PooledCovariance:
     """Sandwich covariance of a :class:`~jointid.identify.regression.PooledSolution`.
 
     ``V_list[r]`` is record ``r``'s score covariance ordered as its shared columns, then its
-    own columns (records are independent).
+    own columns (records are independent).  ``g_list[r]`` (same order) is the covariance of
+    that score with the record's ``q_max`` and ``q_var[r]`` the variance of ``q_max``; with
+    them the covariance of each own coefficient with its record's amplitude is kept (errors
+    in the abscissa of an amplitude law).
     """
     ns = n_shared
     Sch_i = scaled_inverse(solution.schur) if ns else np.zeros((0, 0))
@@ -280,7 +297,14 @@ def pooled_covariance(solution, V_list, n_shared) -> PooledCovariance:
         own_only[r] = Mi @ Voo @ Mi
         own[r] = own_only[r] - F[r] @ K.T - K @ F[r].T + K @ C_ss @ K.T
         own_shared[r] = F[r] - K @ C_ss
-    return PooledCovariance(C_ss, own, own_shared, solution.K, F, own_only)
+    own_q = None
+    if g_list is not None:
+        own_q = np.zeros((nr, no))
+        for r, g in enumerate(g_list):
+            dth_s = Sch_i @ (ws[r] ** 2 * (Ts[r] @ g))
+            own_q[r] = solution.own_gram_inv[r] @ g[ns:] - solution.K[r] @ dth_s
+    return PooledCovariance(C_ss, own, own_shared, solution.K, F, own_only, own_q,
+                            None if q_var is None else np.asarray(q_var, float))
 
 
 @dataclass(frozen=True)
@@ -322,3 +346,6 @@ class LowRankCovariance:
 
     def dense(self) -> np.ndarray:
         return np.diag(self.d) + self.U @ self.W @ self.U.T
+
+    def add_diagonal(self, extra) -> "LowRankCovariance":
+        return LowRankCovariance(self.d + np.asarray(extra, float), self.U, self.W)
