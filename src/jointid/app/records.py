@@ -280,8 +280,13 @@ def _caught(caught) -> dict:
 
 def process_all(specs, settings, to_modal) -> list:
     """:func:`process_record` over all records, on dask workers when ``settings.jobs != 1`` or a
-    ``settings.scheduler`` is given (see :mod:`jointid.app.parallel`); outcomes in the records' order."""
+    ``settings.scheduler`` is given (see :mod:`jointid.app.parallel`); outcomes in the records' order.
+
+    ``to_modal`` is one structure for every record, or a list with one per record (per-preload
+    structures)."""
     from .parallel import map_tasks
 
-    return map_tasks(process_record, [(spec, settings, to_modal) for spec in specs], jobs=settings.jobs,
+    specs = list(specs)
+    per_record = to_modal if isinstance(to_modal, (list, tuple)) else [to_modal] * len(specs)
+    return map_tasks(process_record, [(spec, settings, tm) for spec, tm in zip(specs, per_record)], jobs=settings.jobs,
                      scheduler=settings.scheduler, progress=settings.progress, desc="records")

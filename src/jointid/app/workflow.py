@@ -79,6 +79,7 @@ class CampaignResult:
     damping_law_errors: dict = field(default_factory=dict)
     repredictions: tuple = ()  # Reprediction per group (jointid.app.reprediction)
     loops: tuple = ()  # measured vs identified hysteresis loop errors per group
+    structures: dict = field(default_factory=dict)  # preload -> Structure (physical campaigns; Table 4)
 
     @property
     def failed(self):
@@ -120,6 +121,7 @@ class CampaignResult:
             "flagged": [{"index": r.spec.index, "file": r.spec.file, "flags": [f.name for f in r.flags],
                          "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
             "reprediction": {"groups": [r.summary() for r in self.repredictions], "loops": list(self.loops)},
+            "structures": [{"preload": p, **s.summary()} for p, s in self.structures.items()],
         }
 
     def report(self) -> str:
@@ -156,6 +158,27 @@ def _group_key(value):
     return (0, value) if isinstance(value, (int, float)) else (1, str(value))
 
 
+def _record_structures(campaign, Structure):
+    """One :class:`~jointid.modal.structure.Structure` per record of a physical campaign.
+
+    With per-preload ``[structure.<preload>]`` tables each preload's records use their
+    own structure (built once per preload); otherwise every record uses ``[structure]``.
+    Returns ``(per-record list, {preload: Structure})``.
+    """
+    manifest = campaign.root / "campaign.toml"
+    if getattr(campaign, "structures", None) is None:
+        s = Structure.from_mapping(campaign.structure, source=str(manifest))
+        return [s] * len(campaign.records), {r.preload: s for r in campaign.records}
+    built, per_record = {}, []
+    for spec in campaign.records:
+        key = str(spec.preload)
+        if key not in built:
+            built[key] = (spec.preload, Structure.from_mapping(campaign.structure_for(spec.preload),
+                                                              source=f"{manifest} [structure.{spec.preload}]"))
+        per_record.append(built[key][1])
+    return per_record, dict(built.values())
+
+
 @single_threaded
 def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) -> CampaignResult:
     """Identify every record of a campaign, then the groups and the laws.
@@ -174,11 +197,11 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     if not isinstance(campaign, Campaign):
         campaign = load_campaign(campaign)
     library(settings.terms)  # fail early on unknown terms
-    to_modal = None
+    to_modal, structures = None, {}
     if campaign.coordinates == "physical":
         from ..modal.structure import Structure
 
-        to_modal = Structure.from_mapping(campaign.structure, source=str(campaign.root / "campaign.toml"))
+        to_modal, structures = _record_structures(campaign, Structure)
 
     outcomes = flag_group_outliers(process_all(campaign.records, settings, to_modal))
     use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # records of the pooled fits
@@ -276,6 +299,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     result = CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors
     )
+    result = replace(result, structures=structures)
     if settings.repredict:
         from .reprediction import loop_errors, repredict_campaign
 
