@@ -81,3 +81,42 @@ def test_ringdown_backbone(rig_data):
     for p in parts:
         _check(rig, p)
     assert all(isinstance(p, Backbone) for p in parts)
+
+
+def _law_check(rig, backbone):
+    from jointid.identify.jointlaw import JointModes, fit_cubic_viscous, fit_iwan
+
+    m = rig.model
+    law = m.laws[0]
+    modes = JointModes(m.omega, m.zeta, m.joint_shapes[0])
+    fit = fit_iwan(backbone, modes, K_T=law.linear_stiffness)
+    true = law.iwan
+    # determined by a micro-slip test: the stuck frequency (joint stiffness through the FE
+    # model), the structural damping, chi and the micro-slip dissipation at u_ref
+    assert abs(fit.get("chi") - true.chi) < 0.05
+    assert abs(fit.get("D_ref") / true.dissipation(fit.u_ref) - 1) < 0.05
+    assert abs(fit.get("zeta_0") / m.zeta[0] - 1) < 0.05
+    assert abs(fit.get("Omega") / m.omega[0] - 1) < 5e-4
+    print(f"\n{rig.preload:g} N, {backbone.source}: chi {fit.get('chi'):.4f} ± {fit.get_stderr('chi'):.2g}, "
+          f"D_ref {fit.get('D_ref') / true.dissipation(fit.u_ref) - 1:+.2%}, R {fit.get('R') / true.R - 1:+.2%} "
+          f"(± {fit.get_stderr('R') / true.R:.1%}), k3 {fit.get('k3') / law.k3 - 1:+.2%}, "
+          f"zeta_0 {fit.get('zeta_0') / m.zeta[0] - 1:+.2%}, Omega {fit.get('Omega') / m.omega[0] - 1:+.1e}, "
+          f"chi2_red {fit.adequacy['chi2_red']:.3g}")
+    alt = fit_cubic_viscous(backbone, modes)
+    assert fit.adequacy["aic"] < alt.adequacy["aic"]  # the Iwan law explains the backbone better
+    return fit
+
+
+def test_joint_law_from_stepped_sine(rig_data):
+    rig, stepped, _ = rig_data
+    _law_check(rig, stepped)
+
+
+def test_joint_law_from_ringdowns(rig_data):
+    rig, _, decays = rig_data
+    from jointid.identify.backbone import Backbone
+
+    parts = [d.backbone() for d in decays]
+    cat = Backbone(*(np.concatenate([getattr(p, k) for p in parts]) for k in
+                     ("amplitude", "omega", "zeta", "omega_stderr", "zeta_stderr")), "ringdown")
+    _law_check(rig, cat)
