@@ -95,3 +95,33 @@ def test_structure_files_per_preload_and_a_missing_preload(modal_campaign, tmp_p
     _physical(modal_campaign, missing, (120, 540), {"120": {"file": "structure_120.toml"}})
     with pytest.raises(ManifestError, match=r"540"):
         _identify(missing)
+
+
+@pytest.mark.slow
+def test_two_preload_rig_campaign_gives_the_demo_table5(tmp_path):
+    """The demo's two single-preload rig campaigns joined into one: the same Table 5 in one run."""
+    from jointid.app.demo import run_demo
+
+    demo = run_demo(tmp_path / "demo", progress=False, figures=False)
+    joined = tmp_path / "joined"
+    entries, structures = [], {}
+    for pr in demo.preloads:
+        sub = f"preload_{pr.preload:g}"
+        shutil.copytree(pr.campaign.folder, joined / sub)
+        for spec in load_campaign(joined / sub).records:
+            entries.append({"file": f"{sub}/{spec.file}", "frequency_hz": spec.frequency_hz,
+                            "force_level": spec.force_level, "preload": spec.preload})
+        structures[f"{pr.preload:g}"] = {"file": f"{sub}/campaign.toml"}
+    write_campaign(joined, "two preloads", entries, coordinates="physical", structure=structures)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify_campaign(joined, demo.settings.identify)
+    assert not res.failed
+    for pr in demo.preloads:
+        for g1 in pr.result.groups:
+            g2 = res.group(g1.preload, g1.force_level)
+            assert g2.pooled.omega1 == pytest.approx(g1.pooled.omega1, rel=1e-12)
+            assert g2.pooled.k3 == pytest.approx(g1.pooled.k3, rel=1e-9)
+            assert g2.power_law.n == pytest.approx(g1.power_law.n, rel=1e-9)
+        assert res.structures[pr.preload].modes.frequencies_hz == pytest.approx(
+            pr.structure.modes.frequencies_hz, rel=1e-12)
