@@ -46,10 +46,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
+from scipy.linalg.lapack import dgesv as _dgesv
 
 from .._blas import single_threaded
 from ..conventions import harmonic_index, n_coefficients
 from ..errors import ConvergenceError, ConvergenceWarning, RecordError
+from ..identify.terms import STANDARD_TERMS
 from .model import SingleModeModel
 
 __all__ = [
@@ -270,6 +272,18 @@ class _Problem:
         names = self.lib.names
         self.i_q = names.index("q") if "q" in names else None
         self.i_v = names.index("q'") if "q'" in names else None
+        # the standard linear terms have constant partial derivatives (1 and 0), and a
+        # stiffness term does not depend on the velocity: such parts need no arrays
+        q_lin, v_lin = STANDARD_TERMS["q"], STANDARD_TERMS["q'"]
+        self.lin_q = tuple(j for j, t in enumerate(self.lib.terms) if t is q_lin)
+        self.lin_v = tuple(j for j, t in enumerate(self.lib.terms) if t is v_lin)
+        self.nl_terms = tuple(
+            (j, t.dq, t.dv, t.kind == "stiffness")
+            for j, t in enumerate(self.lib.terms)
+            if t is not q_lin and t is not v_lin
+        )
+        self.PED = self.P @ self.ED
+        self.E_ED = np.vstack([self.E, self.ED])  # P diag(c) ED for a constant c (viscous damping)
         self._last_failure = ""
 
     # -- small helpers ---------------------------------------------------------------
@@ -306,28 +320,35 @@ class _Problem:
 
     def _forces(self, q, v, theta):
         """``h`` at the time samples."""
-        h = np.zeros_like(q)
+        h = None
         for j, func, _, _ in self.fast_terms:
             c = theta[j]
             if c != 0.0:
-                h += c * func(q, v)
-        return h
+                if h is None:
+                    h = c * func(q, v)
+                else:
+                    h += c * func(q, v)
+        return np.zeros_like(q) if h is None else h
 
     def _derivatives(self, q, v, theta):
-        """``(dh/dq, dh/dv)`` at the time samples (as TermLibrary.derivatives)."""
-        gq = np.zeros_like(q)
-        gv = np.zeros_like(q)
-        for j, _, dq, dv in self.fast_terms:
+        """``(dh/dq, dh/dv)`` at the time samples (as TermLibrary.derivatives).
+
+        A part that is constant in time (linear terms only) comes back as a float.
+        """
+        gq = float(sum(theta[j] for j in self.lin_q))
+        gv = float(sum(theta[j] for j in self.lin_v))
+        for j, dq, dv, stiffness in self.nl_terms:
             c = theta[j]
             if c == 0.0:
                 continue
-            if dq is not None and dv is not None:
-                gq += c * dq(q, v)
-                gv += c * dv(q, v)
+            if dq is not None and (dv is not None or stiffness):
+                gq = gq + c * dq(q, v)
+                if not stiffness:
+                    gv = gv + c * dv(q, v)
             else:
                 a, b = self.lib.terms[j].derivatives(q, v)
-                gq += c * a
-                gv += c * b
+                gq = gq + c * a
+                gv = gv + c * b
         return gq, gv
 
     def evaluate(self, z, omega, jacobian=True, domega=False):
@@ -339,8 +360,8 @@ class _Problem:
         nx = self.active.size
         x = z[:nx]
         theta = self.model.coefficients_at(z[nx]) if self.closure else self.theta0
-        q = self.E @ x
-        dv = self.ED @ x
+        qd = self.E_ED @ x
+        q, dv = qd[: self.N], qd[self.N :]
         v = omega * dv
         h = self._forces(q, v, theta)
         R = np.empty(self.m)
@@ -367,8 +388,18 @@ class _Problem:
         z, omega, q, v, theta = ev["z"], ev["omega"], ev["q"], ev["v"], ev["theta"]
         hq, hv = self._derivatives(q, v, theta)
         J = np.empty((self.m, self.m))
-        J[:nx, :nx] = self.P @ (hq[:, None] * self.E + (omega * hv)[:, None] * self.ED)
-        J[np.arange(nx), np.arange(nx)] -= omega * omega * self.k2
+        q_arr, v_arr = isinstance(hq, np.ndarray), isinstance(hv, np.ndarray)
+        Jx = J[:nx, :nx]
+        if q_arr:
+            np.matmul(self.P, hq[:, None] * self.E, out=Jx)
+        else:
+            Jx[...] = 0.0
+            J.ravel()[: nx * (self.m + 1) : self.m + 1] = hq  # P E = I
+        if v_arr:
+            Jx += self.P @ ((omega * hv)[:, None] * self.ED)
+        else:
+            Jx += (omega * hv) * self.PED
+        J.ravel()[: nx * (self.m + 1) : self.m + 1] -= omega * omega * self.k2
         if self.closure:
             qm = z[nx]
             dh = np.zeros_like(q)
@@ -383,7 +414,9 @@ class _Problem:
         ev["J"] = J
         if domega:
             Jw = np.zeros(self.m)
-            Jw[:nx] = self.P @ (hv * ev["dv"]) - 2.0 * omega * self.k2 * z[:nx]
+            Jw[:nx] = (self.P @ (hv * ev["dv"]) if np.ndim(hv) else hv * (self.P @ ev["dv"])) - (
+                2.0 * omega * self.k2 * z[:nx]
+            )
             ev["Jw"] = Jw
         return ev
 
@@ -405,7 +438,7 @@ class _Problem:
             if ev["J"] is None:
                 self.jacobian(ev)
             try:
-                step = np.linalg.solve(ev["J"], -ev["R"])
+                step = _solve(ev["J"], -ev["R"])
             except np.linalg.LinAlgError:
                 raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "singular Jacobian")) from None
             if not np.all(np.isfinite(step)):
@@ -802,6 +835,16 @@ class _Problem:
             model=self.model,
             floquet_exponents=None if floquet is None else _readonly(floquet),
         )
+
+
+def _solve(A, b):
+    """``A x = b`` for a small dense system by LAPACK ``gesv`` (without the per-call
+    overhead of :func:`numpy.linalg.solve`); raises :class:`numpy.linalg.LinAlgError`
+    when ``A`` is exactly singular."""
+    _, _, x, info = _dgesv(A, b)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"singular matrix (gesv info {info})")
+    return x
 
 
 def _matmul2(A, B):
@@ -1475,8 +1518,8 @@ class _Arclength:
         A = np.vstack([Gy, t_prev])
         rhs = np.zeros(A.shape[0])
         rhs[-1] = 1.0
-        t = np.linalg.solve(A, rhs)
-        return t / np.linalg.norm(t)
+        t = _solve(A, rhs)
+        return t / math.sqrt(float(t @ t))
 
     def correct(self, yp, t, max_iter=10):
         """Newton on ``[G(y); t.(y - yp)] = 0``; returns ``(y, Gy, ev, its)`` or None."""
@@ -1490,7 +1533,7 @@ class _Arclength:
             A = np.vstack([Gy, t])
             rhs = -np.append(G, t @ (y - yp))
             try:
-                dy = np.linalg.solve(A, rhs)
+                dy = _solve(A, rhs)
             except np.linalg.LinAlgError:
                 return None
             y = y + dy
@@ -1501,16 +1544,33 @@ class _Arclength:
 
 
 def _amplitude_scale(problem, w0, w1, tol):
-    """Typical size of the unknown vector over the range (a coarse sweep)."""
-    zmax = 0.0
-    try:
-        for _, z, _, _ in _sweep(problem, np.linspace(w0, w1, 21), max(tol, 1e-10)):
-            zmax = max(zmax, float(np.max(np.abs(z))))
-    except ConvergenceError:
-        pass
-    if zmax == 0.0:
-        zmax = max(abs(problem.F) / max(w0, w1) ** 2, _TINY)
-    return zmax
+    """Typical size of the unknown vector over the range (it sets the metric of the steps).
+
+    Without amplitude laws: the largest response of the model's linear part at the ends
+    of the range and at its resonance when that lies inside, found without solving
+    anything (the nonlinear response peaks at about the same size).  With amplitude
+    laws the frozen-closure stability changes away from the folds, so which points a
+    curve holds matters more; the scale stays the one of the earlier releases, the
+    largest coefficient of a coarse 21-point sweep, so those curves keep their points.
+    """
+    if problem.closure:
+        zmax = 0.0
+        try:
+            for _, z, _, _ in _sweep(problem, np.linspace(w0, w1, 21), max(tol, 1e-10)):
+                zmax = max(zmax, float(np.max(np.abs(z))))
+        except ConvergenceError:
+            pass
+        return zmax if zmax > 0.0 else max(abs(problem.F) / max(w0, w1) ** 2, _TINY)
+    ws = [w0, w1]
+    kq = problem.theta0[problem.i_q] if problem.i_q is not None else 0.0
+    if kq > 0 and min(w0, w1) < math.sqrt(kq) < max(w0, w1):
+        ws.append(math.sqrt(kq))
+    with np.errstate(all="ignore"):
+        amps = [_linear_closure_amplitude(problem.model, w, problem.F) for w in ws]
+    amps = [a for a in amps if np.isfinite(a) and a > 0.0]
+    if not amps:
+        return max(abs(problem.F) / max(w0, w1) ** 2, _TINY)
+    return float(max(amps))
 
 
 def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
