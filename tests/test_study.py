@@ -72,7 +72,7 @@ def test_comparison_rows_read_models_and_intervals():
                     "k3": 4.9e6, "k3_stderr": 0.2e6, "k3_ci95": [4.5e6, 5.3e6],
                     "damping_coefficients": [0.1, 51.0, 0.0], "damping_stderr": [0.01, 1.0, 1.0],
                     "damping_ci95": [[0.08, 0.12], [49.0, 53.0], [-2.0, 2.0]]}],
-        "records": [{"index": 0, "status": "ok", "c": 0.7, "c_stderr": 0.2, "c_pooled": 0.61, "c_pooled_stderr": 0.02,
+        "records": [{"index": 0, "status": "ok", "omega1": 170.1, "omega1_stderr": 0.05, "c": 0.7, "c_stderr": 0.2, "c_pooled": 0.61, "c_pooled_stderr": 0.02,
                      "coefficients": {"omega1^2": 28900.0, "k3": 4e6, "c": 0.7},
                      "stderr": {"omega1^2": 1.0, "k3": 1e6, "c": 0.2}}],
     }
@@ -87,6 +87,8 @@ def test_comparison_rows_read_models_and_intervals():
     assert rows[("models.damping.c1", "preload=120")]["ci95"] == [49.0, 53.0]
     assert rows[("models.damping.c1", "preload=120")]["covered"] is True
     assert rows[("records.c", "record 0")]["z"] == pytest.approx(0.5)
+    assert rows[("records.omega1", "record 0")]["z"] == pytest.approx(2.0)
+    assert rows[("records.omega1", "record 0")]["covered"] is False
     assert rows[("records.c_pooled", "record 0")]["z"] == pytest.approx(0.5)
     assert rows[("records.coefficients.k3", "record 0")]["z"] == pytest.approx(-1.0)
     # a missing estimate (failed group) is kept as missing, not turned into a number
@@ -225,3 +227,12 @@ noise = 0.01
     assert (out / "statistics.csv").read_text().startswith("grid_point,parameter,")
     assert load_study_plan(plan).n_campaigns == 4
     assert main(["study", str(tmp_path / "missing.toml"), "--out", str(out)]) == 2
+
+
+def test_example_plan_reads(tmp_path):
+    from pathlib import Path
+
+    plan = load_study_plan(Path(__file__).resolve().parents[1] / "examples" / "study.toml")
+    assert plan.n_campaigns == 200 and len(plan.vary) == 7
+    tables, drawn, _ = plan.draw(0)
+    assert 2 <= len(tables["excitation"]["force_levels"]) <= 4

@@ -434,7 +434,8 @@ def comparison_rows(summary: dict, truth: dict) -> list:
     list of dict
         One row per estimate that the results give and the truth defines: ``parameter``
         (a label common to all campaigns, e.g. ``"groups.k3"``, ``"damping_law.c1"``,
-        ``"records.c_pooled"``, ``"models.omega1"``), ``where`` (group, preload or record),
+        ``"records.c_pooled"``, ``"models.omega1"``; each key of ``results.json`` with a
+        ``*_stderr`` sibling, and its ``*_ci95`` when given), ``where`` (group, preload or record),
         ``estimate``, ``stderr``, ``ci95`` (``[low, high]`` or None), ``truth``, ``z`` and
         ``covered`` (the interval contains the truth; without an interval ``|z| <= 1.96``).
         Missing estimates (a failed group) give rows with ``estimate`` None.
@@ -485,6 +486,10 @@ def comparison_rows(summary: dict, truth: dict) -> list:
         if t is None or r.get("status") != "ok":
             continue
         where = f"record {r['index']}"
+        w2 = t["coefficients"].get("omega1^2")
+        if w2 is not None and "omega1_stderr" in r:
+            rows.append(_row("records.omega1", where, r.get("omega1"), r.get("omega1_stderr"), float(np.sqrt(w2)),
+                             _interval(r.get("omega1_ci95"))))
         c = t["coefficients"].get("c")
         if c is not None and "c_pooled" in r:
             rows.append(_row("records.c_pooled", where, r.get("c_pooled"), r.get("c_pooled_stderr"), c,

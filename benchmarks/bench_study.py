@@ -1,0 +1,109 @@
+"""Benchmark: a Monte Carlo study on one and on two local dask workers.
+
+Runs the same study (default 200 small campaigns: one preload, one or two force levels of
+five frequencies, 10-period records at 1.5 kHz, noise and k3 drawn per campaign) three
+times, measured in the same process:
+
+* in this process, without dask (``jobs=1``): the baseline, and the task time;
+* on a local cluster of one worker: the per-task overhead of dask against the task time;
+* on a local cluster of ``--workers`` workers (default 2): the speed-up.
+
+It prints the wall and CPU times, the ratios, the round trip of an empty task, the cluster
+start-up time, the peak resident memory of each worker, the load average (a shared machine
+gives a lower ratio than a quiet one: compare the CPU time with the wall time), and checks
+that the three runs wrote the same ``campaigns.jsonl`` byte for byte.
+
+    python benchmarks/bench_study.py                  # ~3 min on two quiet cores
+    python benchmarks/bench_study.py --campaigns 50   # quicker
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import tempfile
+import time
+from pathlib import Path
+
+from jointid.app.parallel import map_tasks
+from jointid.app.study import run_study
+
+
+def plan(campaigns: int) -> dict:
+    return {
+        "study": {"name": "benchmark", "campaigns": campaigns, "seed": 2026},
+        "model": [{"preload": "sim", "omega1": 170.0, "coefficients": {"k3": 5e6},
+                   "amplitude_laws": {"c": [0.08, 70.0, 1e4]}}],
+        "excitation": {"force_levels": [1.0], "omega_start": 162.0, "omega_stop": 178.0, "n_frequencies": 5},
+        "acquisition": {"fs": 1500.0, "periods": 10, "noise": 0.01},
+        "vary": {
+            "acquisition.noise": {"loguniform": [0.002, 0.02]},
+            "model.coefficients.k3": {"uniform": [3e6, 6e6], "random_sign": True},
+            "excitation.force_levels": {"uniform": [0.6, 2.0], "size": [1, 2]},
+        },
+    }
+
+
+def _peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kB
+
+
+def _noop(i):
+    return i
+
+
+def _warm_up():
+    import jointid.app.study  # noqa: F401 - imports are a one-off cost of a worker, not of its tasks
+
+
+def timed(fn):
+    w, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - w, time.process_time() - c
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--campaigns", type=int, default=200)
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    import distributed
+
+    n = args.campaigns
+    p = plan(n)
+    print(f"study of {n} campaigns; load average at start {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        _, t_serial, cpu_serial = timed(lambda: run_study(p, tmp / "serial", report=False))
+        task = t_serial / n
+        print(f"in this process (no dask):  {t_serial:7.2f} s wall, {cpu_serial:7.2f} s CPU   "
+              f"task {1e3 * task:6.1f} ms")
+        results = {}
+        for workers in (1, args.workers):
+            t0 = time.perf_counter()
+            with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                          dashboard_address=None) as cl, distributed.Client(cl) as client:
+                client.run(_warm_up)
+                start = time.perf_counter() - t0
+                _, t_noop, _ = timed(lambda: map_tasks(_noop, [(i,) for i in range(n)], client=client))
+                _, t, _ = timed(lambda: run_study(p, tmp / f"w{workers}", client=client, report=False))
+                rss = client.run(_peak_rss_mb)
+            results[workers] = t
+            print(f"local cluster, {workers} worker(s): {t:7.2f} s wall (start-up and imports {start:.2f} s)   "
+                  f"ratio to in-process {t_serial / t:5.2f}x")
+            print(f"    empty task round trip {1e3 * t_noop / n:6.2f} ms/task; "
+                  f"peak memory per worker: {', '.join(f'{v:.0f} MB' for v in rss.values())}")
+            if workers == 1:
+                over = (t - t_serial) / n
+                print(f"    per-task overhead {1e3 * over:6.2f} ms against a task of {1e3 * task:6.1f} ms "
+                      f"({100 * over / task:.1f} %)")
+        ratio = results[1] / results[args.workers]
+        print(f"speed-up {args.workers} workers / 1 worker: {ratio:.2f}x (goal >= 1.8x on 2 quiet cores); "
+              f"load average now {os.getloadavg()[0]:.2f}")
+        same = {(tmp / d / "campaigns.jsonl").read_bytes() for d in ("serial", "w1", f"w{args.workers}")}
+        print("campaigns.jsonl identical in the three runs:", len(same) == 1)
+
+
+if __name__ == "__main__":
+    main()
