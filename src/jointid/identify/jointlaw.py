@@ -260,45 +260,40 @@ def _eigen_backbone(modes, Om, z0, a, joint):
     """``(omega, zeta)`` of mode 1 with the joint's first-harmonic stiffness and damping in the linear modes.
 
     ``joint(u0) -> (dk, dc)``: complex stiffness change (in-phase + i hysteretic) and
-    viscous damping added at the joint.  The joint amplitude ``u0 = |Psi v| a`` of the
-    mode ``v`` (``v_1 = 1``) is found by fixed-point iteration.
+    viscous damping added at the joint, for an array of joint amplitudes.  The joint acts
+    through the rank-one ``Psi Psi^T``, so the eigenvalue ``lambda`` of mode 1 solves the
+    scalar equation ``1 + (dk + lambda dc) sum_m psi_m^2 / d_m(lambda) = 0`` with
+    ``d_m = lambda^2 + 2 zeta_m Omega_m lambda + Omega_m^2`` (Newton, all amplitudes at
+    once), and the mode ``v_m ~ psi_m / d_m`` gives the joint amplitude
+    ``u0 = |sum_m psi_m v_m| a`` with ``v_1 = 1`` (updated in the same iteration).
     """
     om = modes.omega.copy()
     ze = modes.zeta.copy()
     om[0], ze[0] = Om, z0
-    Psi = modes.shapes
-    n = om.size
-    P = np.outer(Psi, Psi)
-    Kd = np.diag(om**2).astype(complex)
-    Cd = np.diag(2 * ze * om)
-    w_out = np.empty(a.size)
-    z_out = np.empty(a.size)
-    for k, ai in enumerate(a):
-        u0 = abs(Psi[0]) * ai
-        for _ in range(30):
-            dk, dc = joint(u0)
-            if n == 1:
-                c = Cd[0, 0] + P[0, 0] * dc
-                kk = Kd[0, 0] + P[0, 0] * dk
-                lam = -0.5 * c + np.sqrt(0.25 * c * c - kk + 0j)
-                if lam.imag < 0:
-                    lam = -0.5 * c - np.sqrt(0.25 * c * c - kk + 0j)
-                break
-            A = np.zeros((2 * n, 2 * n), complex)
-            A[:n, n:] = np.eye(n)
-            A[n:, :n] = -(Kd + P * dk)
-            A[n:, n:] = -(Cd + P * dc)
-            lam_all, V = np.linalg.eig(A)
-            i = int(np.argmin(np.abs(lam_all - 1j * Om)))
-            lam = lam_all[i]
-            v = V[:n, i] / V[0, i]
-            u_new = abs(Psi @ v) * ai
-            if abs(u_new - u0) <= 1e-13 * max(u0, 1e-300):
-                break
-            u0 = u_new
-        w_out[k] = abs(lam)
-        z_out[k] = -lam.real / abs(lam)
-    return w_out, z_out
+    psi2 = modes.shapes**2
+    c = 2 * ze * om
+    a = np.asarray(a, float)
+    lam = np.full(a.size, complex(-z0 * Om, Om * np.sqrt(max(1 - z0 * z0, 0.0))))
+    u0 = abs(modes.shapes[0]) * a
+    for _ in range(100):
+        dk, dc = joint(u0)
+        D = lam[:, None] ** 2 + c * lam[:, None] + om**2
+        dD = 2 * lam[:, None] + c
+        Sr = (psi2[1:] / D[:, 1:]).sum(axis=1)  # the other modes
+        dSr = -(psi2[1:] * dD[:, 1:] / D[:, 1:] ** 2).sum(axis=1)
+        g = dk + lam * dc
+        # d_1 (1 + g S) = d_1 + g psi_1^2 + g d_1 S_r: smooth where g -> 0
+        F = D[:, 0] + g * (psi2[0] + D[:, 0] * Sr)
+        dF = dD[:, 0] + dc * (psi2[0] + D[:, 0] * Sr) + g * (dD[:, 0] * Sr + D[:, 0] * dSr)
+        step = F / dF
+        lam = lam - step
+        u_new = np.abs((psi2[0] + D[:, 0] * Sr) / modes.shapes[0]) * a
+        du = np.abs(u_new - u0)
+        u0 = u_new
+        if np.all(np.abs(step) <= 1e-14 * Om) and np.all(du <= 1e-12 * np.maximum(u0, 1e-300)):
+            break
+    w = np.abs(lam)
+    return w, -lam.real / w
 
 
 def _iwan_joint(R, chi, k3):
@@ -306,8 +301,8 @@ def _iwan_joint(R, chi, k3):
     c_d = 4.0 / ((chi + 2.0) * (chi + 3.0) * np.pi)
 
     def joint(u0):
-        uc = u0 ** (chi + 1.0) if u0 > 0 else 0.0
-        return complex(-R * Ic * uc - 0.75 * k3 * u0**2, R * c_d * uc), 0.0
+        uc = np.where(u0 > 0, np.abs(u0) ** (chi + 1.0), 0.0)
+        return -R * Ic * uc - 0.75 * k3 * u0**2 + 1j * R * c_d * uc, 0.0
 
     return joint
 
@@ -321,7 +316,7 @@ def _iwan_model(p, a, modes, u_ref=1.0):
 def _cubic_viscous_model(p, a, modes, u_ref=1.0):
     """Parameters ``(Omega, zeta_0, k3, c1, c2)``: ``c(u0) = c1 u0 + c2 u0^2`` acts at the joint."""
     Om, z0, k3, c1, c2 = p
-    return _eigen_backbone(modes, Om, z0, a, lambda u0: (complex(-0.75 * k3 * u0**2, 0.0), c1 * u0 + c2 * u0**2))
+    return _eigen_backbone(modes, Om, z0, a, lambda u0: (-0.75 * k3 * u0**2 + 0j, c1 * u0 + c2 * u0**2))
 
 
 _MODELS = {"iwan": _iwan_model, "cubic-viscous": _cubic_viscous_model}
@@ -420,10 +415,12 @@ def fit_iwan(backbone, modes, *, cubic=True, K_T=None, direction="rotation") -> 
     Om0, z_0 = float(w[i_lo]), float(z[i_lo])
     nk = 5 if cubic else 4
 
+    # scaled unknowns: x = (Omega / Om0 - 1) / 1e-4, zeta0 / z_0, ln kappa, chi, k3 / k3s with
+    # kappa = R u_ref^(chi + 1); differences then step sensibly in every direction
     def unpack(x):
-        Om, z0, lnk, chi = x[:4]
-        k3 = x[4] * 1.0 if cubic else 0.0
-        return np.array([Om, z0, np.exp(lnk) / u_ref ** (chi + 1.0), chi, k3])
+        chi = x[3]
+        k3 = x[4] * k3s if cubic else 0.0
+        return np.array([Om0 * (1 + 1e-4 * x[0]), z_0 * x[1], np.exp(x[2]) / u_ref ** (chi + 1.0), chi, k3])
 
     def resid(x):
         wm, zm = _iwan_model(unpack(x), a, modes)
@@ -434,22 +431,24 @@ def fit_iwan(backbone, modes, *, cubic=True, K_T=None, direction="rotation") -> 
     slope = np.polyfit(np.log(u0), np.log(dz), 1)[0] if np.ptp(np.log(u0)) > 0 else 0.7
     chi0 = float(np.clip(slope - 1.0, -0.9, 0.9))
     cd = 4.0 / ((chi0 + 2.0) * (chi0 + 3.0) * np.pi)
-    kap0 = float(np.interp(u_ref, u0[np.argsort(u0)], dz[np.argsort(u0)]) * 2 * Om0**2 / (psi**2 * cd))
-    x0 = np.array([Om0, 0.9 * z_0, np.log(max(kap0, 1e-300)), chi0, 0.0][:nk])
-    lo = np.array([0.5 * Om0, 0.0, -np.inf, -0.99, -np.inf][:nk])
-    hi = np.array([2.0 * Om0, 1.0, np.inf, 0.99, np.inf][:nk])
-    k3_scale = kap0 / u_ref**2  # a cubic as strong as the micro-slip at u_ref
-    sc = np.array([1e-5 * Om0, max(0.01 * z_0, 1e-9), 0.01, 0.01, 0.1 * abs(k3_scale) or 1.0][:nk])
-    sol = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=sc, method="trf", xtol=1e-12, ftol=1e-12,
-                                 gtol=1e-12, max_nfev=4000)
+    order = np.argsort(u0)
+    kap0 = float(np.interp(u_ref, u0[order], dz[order]) * 2 * Om0**2 / (psi**2 * cd))
+    k3s = max(kap0, 1e-300) / u_ref**2  # a cubic as strong as the micro-slip at u_ref
+    x0 = np.array([0.0, 0.9, np.log(max(kap0, 1e-300)), chi0, 0.0][:nk])
+    lo = np.array([-5e3, 0.0, -np.inf, -0.99, -np.inf][:nk])
+    hi = np.array([5e3, 1e3, np.inf, 0.99, np.inf][:nk])
+    sol = optimize.least_squares(resid, x0, bounds=(lo, hi), method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                                 max_nfev=4000)
     x = sol.x
     p = unpack(x)
-    G = np.zeros((6, nk))  # (Omega, zeta0, R, chi, k3, D_ref) from (Omega, zeta0, ln kappa, chi, k3)
-    G[0, 0] = G[1, 1] = G[3, 3] = 1.0
+    G = np.zeros((6, nk))  # (Omega, zeta0, R, chi, k3, D_ref) from the scaled unknowns
+    G[0, 0] = 1e-4 * Om0
+    G[1, 1] = z_0
+    G[3, 3] = 1.0
     G[2, 2] = p[2]
     G[2, 3] = -p[2] * np.log(u_ref)
     if cubic:
-        G[4, 4] = 1.0
+        G[4, 4] = k3s
     kappa = float(np.exp(x[2]))
     D_ref = 4.0 * kappa * u_ref**2 / ((p[3] + 2.0) * (p[3] + 3.0))
     G[5, 2] = D_ref
@@ -480,20 +479,25 @@ def fit_cubic_viscous(backbone, modes, *, direction="rotation") -> JointLawFit:
     A2 = np.column_stack([np.ones_like(u0), psi**2 * u0, psi**2 * u0**2])
     c2, *_ = np.linalg.lstsq(A2, 2 * w * z, rcond=None)
     Om = float(np.sqrt(max(c1[0], 1e-300)))
-    x0 = np.array([Om, c2[0] / (2 * Om), c1[1], c2[1], c2[2]])
+    p0 = np.array([Om, c2[0] / (2 * Om), c1[1], c2[1], c2[2]])
+    scale = np.where(p0 != 0, np.abs(p0), 1.0)
+    scale[0] = 1e-4 * Om
+
+    def unpack(x):  # scaled unknowns around the closed-form start
+        return np.concatenate([[Om + scale[0] * x[0]], scale[1:] * x[1:]])
 
     def resid(x):
-        wm, zm = _cubic_viscous_model(x, a, modes)
+        wm, zm = _cubic_viscous_model(unpack(x), a, modes)
         return np.concatenate([(wm - w) / sw, (zm - z) / sz])
 
-    sc = np.maximum(np.abs(x0), 1e-12) * np.array([1e-5, 1e-2, 1e-1, 1e-1, 1e-1])
-    sol = optimize.least_squares(resid, x0, x_scale=sc, method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                                 max_nfev=4000)
+    x0 = np.concatenate([[0.0], p0[1:] / scale[1:]])
+    sol = optimize.least_squares(resid, x0, method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=4000)
+    p_fit = unpack(sol.x)
     unit, force = _units(modes.direction)
     units = {"Omega": "rad/s", "zeta_0": "", "k3": f"{force} / {unit}^3", "c1": f"{force} s / {unit}^2",
              "c2": f"{force} s / {unit}^3"}
     names = ("Omega", "zeta_0", "k3", "c1", "c2")
-    return _finish("cubic-viscous", names, sol.fun, sol.jac, np.eye(5), sol.x, a, w, z, modes, units,
+    return _finish("cubic-viscous", names, sol.fun, sol.jac, np.diag(scale), p_fit, a, w, z, modes, units,
                    names, ("K_T",), None, None)
 
 

@@ -9,6 +9,7 @@ the contract format of :mod:`jointid.io.campaign`::
     <folder>/records/F1.5_000.csv   time, force, accel_30, accel_42 (full double precision)
     <folder>/records/F1.5_000.uff   the same record as UFF dataset 58 (binary 58b, bit-exact)
     <folder>/random/random.uff      the random test (and .csv when asked for)
+    <folder>/ringdown/R6.uff        free decay released at 6 N (``excitation = "ringdown"``), when planned
 
 One campaign per preload: the ``[structure]`` of a campaign is one structure, and the
 updated beam differs between the preloads.  The manifest names the UFF files (the
@@ -57,6 +58,11 @@ class MeasurementPlan:
         Which of them the manifest names.
     random_formats : tuple of {"csv", "uff"}
         Files written for the random record.
+    ringdown_levels : tuple of float
+        Shaker force amplitudes [N] at which mode 1 is driven in phase resonance and
+        released (one ring-down record each, ``excitation = "ringdown"``); empty: none.
+    ringdown_duration : float
+        Length of each ring-down record after the release [s].
     """
 
     force_levels: tuple = (1.5, 3.0, 6.0)
@@ -67,6 +73,8 @@ class MeasurementPlan:
     formats: tuple = ("csv", "uff")
     manifest_format: str = "uff"
     random_formats: tuple = ("uff",)
+    ringdown_levels: tuple = ()
+    ringdown_duration: float = 4.0
 
     def __post_init__(self):
         if self.manifest_format not in self.formats:
@@ -94,6 +102,8 @@ class MeasurementPlan:
             "random": self.random.summary(),
             "formats": list(self.formats),
             "manifest_format": self.manifest_format,
+            "ringdown_levels": list(self.ringdown_levels),
+            "ringdown_duration": float(self.ringdown_duration),
         }
 
 
@@ -243,6 +253,18 @@ def run_test_plan(rig: VirtualRig, plan: MeasurementPlan, folder, *, rng=None, p
         dwells.extend(ds)
         if progress:
             progress(f"stepped sine F = {F:g} N")
+    if plan.ringdown_levels:
+        for F, (rec, _) in zip(plan.ringdown_levels, rig.ringdown(plan.ringdown_levels, plan.ringdown_duration,
+                                                                  plan.acquisition, rng)):
+            files = {}
+            for fmt in plan.formats:
+                rel = f"ringdown/R{_slug(F)}.{fmt}"
+                _write(folder / rel, rec, fmt)
+                files[fmt] = rel
+            entries.append({"file": files[plan.manifest_format], "force_level": float(F), "preload": float(rig.preload),
+                            "excitation": "ringdown", "files": files})
+        if progress:
+            progress("ring-downs")
     camp = RigCampaign(folder, rig, plan, tuple(dwells), tuple(entries), random_files,
                        {"max": list(random_rec.meta.get("joint_max", [])),
                         "rms": list(random_rec.meta.get("joint_rms", []))})

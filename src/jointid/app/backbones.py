@@ -1,0 +1,278 @@
+"""Backbones of an identified campaign: model, stepped-sine points, ring-downs and the joint law, per preload.
+
+:func:`backbone_from_campaign` takes a :class:`~jointid.app.workflow.CampaignResult` (and
+its campaign, for the ring-down records) and returns a :class:`CampaignBackbones`:
+
+* the backbone of each preload's identified model (``result.models``) over the measured
+  amplitude range with 95 % bands from the model's covariance
+  (:func:`preload_model_backbone`, also usable on a saved ``results.json`` entry);
+* the equivalent linearisation of every stepped-sine record and the phase-resonance
+  point of every force level;
+* the free-decay backbone of every ``excitation = "ringdown"`` record (windowed fit of
+  the modal acceleration, windows below the noise floor left out);
+* with an FE structure, the Iwan and cubic + viscous joint laws fitted to the measured
+  points through the joint's linear modes.
+
+A record or a preload that cannot be used is reported in ``errors`` and the rest goes on.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import JointidError, JointidWarning, RecordError, where
+from ..identify.backbone import Backbone, equivalent_linearisation, model_backbone, phase_resonance_points
+from ..identify.jointlaw import JointModes, fit_joint_laws
+from ..signal.ringdown import fit_decay
+
+__all__ = ["PreloadBackbones", "CampaignBackbones", "preload_model_backbone", "ringdown_decay",
+           "backbone_from_campaign"]
+
+
+def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, label="") -> Backbone:
+    """Backbone of a preload's identified model with 95 % bands.
+
+    Parameters
+    ----------
+    model : PreloadModel or dict
+        The model, or its ``summary()`` (a ``results.json`` ``models`` entry): ``terms``,
+        ``amplitude_laws`` (orders), ``parameter_names``, ``parameters``, ``covariance``,
+        ``q_max_range``.
+    amplitudes : array_like, optional
+        Default: ``n_points`` log-spaced over the model's ``q_max`` range.
+    n_harmonics : int
+        See :func:`jointid.identify.backbone.model_backbone`.
+    """
+    s = model if isinstance(model, dict) else model.summary()
+    from ..identify.terms import library
+
+    lib = library(s["terms"])
+    orders = {lib[k].coefficient: int(v) for k, v in (s.get("amplitude_laws") or {}).items()}
+    params = np.asarray(s["parameters"], float)
+    cov = None if s.get("covariance") is None else np.asarray(s["covariance"], float)
+    # the model's parameters run term by term (laws expanded in place); the backbone's
+    # vector holds the constant coefficients first, then the laws (parameter_vector)
+    coefs, laws, pos_const, pos_law = [], {}, [], {}
+    i = 0
+    for t in lib:
+        L = orders.get(t.coefficient, 0)
+        if L == 0:
+            coefs.append(params[i])
+            pos_const.append(i)
+        else:
+            coefs.append(0.0)
+            laws[t.coefficient] = params[i:i + L + 1]
+            pos_law[t.coefficient] = list(range(i, i + L + 1))
+        i += L + 1
+    perm = pos_const + [j for t in lib if t.coefficient in pos_law for j in pos_law[t.coefficient]]
+    if amplitudes is None:
+        lo, hi = s.get("q_max_range") or (None, None)
+        if not (lo and hi and hi > lo > 0):
+            raise RecordError("the model has no amplitude range; give the amplitudes")
+        amplitudes = np.geomspace(lo, hi, int(n_points))
+    return model_backbone(lib, coefs, amplitudes, amplitude_laws=laws,
+                          covariance=None if cov is None else cov[np.ix_(perm, perm)], n_harmonics=n_harmonics,
+                          label=label or f"preload {s.get('preload')}")
+
+
+def ringdown_decay(spec, structure=None, **fit_options):
+    """Read one ring-down record, project it on mode 1 and fit its free decay.
+
+    Parameters
+    ----------
+    spec : RecordSpec
+        An ``excitation = "ringdown"`` record (the force column may be absent).
+    structure : Structure, optional
+        Physical campaign: the sensor columns are projected on mode 1.  Without it the
+        record holds the modal acceleration in column ``accel``.
+    **fit_options
+        Passed to :func:`jointid.signal.ringdown.fit_decay`.
+
+    Returns
+    -------
+    DecayFit
+
+    Raises
+    ------
+    JointidError
+        Naming the file and record.
+    """
+    from ..io.campaign import read_record
+
+    loc = where(spec.file, spec.index)
+    if structure is None:
+        data = read_record(spec, required=("time", "accel"))
+        qdd = data.channels["accel"]
+        channel = "accel"
+    else:
+        data = read_record(spec, required=("time",) + tuple(structure.sensors))
+        qdd = structure.project({k: data.channels[k] for k in structure.sensors}).qdd[0]
+        channel = "accel (modal)"
+    try:
+        return fit_decay(data.time, qdd, channel=channel, **fit_options)
+    except RecordError as exc:
+        raise RecordError(f"{loc}{exc}") from None
+
+
+@dataclass(frozen=True, eq=False)
+class PreloadBackbones:
+    """The backbones of one preload and the joint laws fitted to its measured points."""
+
+    preload: object
+    model: Backbone | None = None
+    stepped: Backbone | None = None
+    phase_resonance: Backbone | None = None
+    ringdown: tuple = ()
+    joint_laws: dict = field(default_factory=dict)
+    errors: dict = field(default_factory=dict)
+
+    def measured(self) -> Backbone | None:
+        """Stepped-sine and ring-down points together (the joint laws are fitted to them)."""
+        parts = [b for b in (self.stepped,) + tuple(self.ringdown) if b is not None and len(b)]
+        if not parts:
+            return None
+        cat = {k: np.concatenate([getattr(b, k) for b in parts])
+               for k in ("amplitude", "omega", "zeta", "omega_stderr", "zeta_stderr", "amplitude_stderr")}
+        ok = np.isfinite(cat["omega"]) & np.isfinite(cat["zeta"])
+        return Backbone(cat["amplitude"][ok], cat["omega"][ok], cat["zeta"][ok], cat["omega_stderr"][ok],
+                        cat["zeta_stderr"][ok], "+".join(sorted({b.source for b in parts})),
+                        cat["amplitude_stderr"][ok], f"preload {self.preload}")
+
+    def summary(self) -> dict:
+        return {
+            "preload": self.preload,
+            "model": None if self.model is None else self.model.summary(),
+            "stepped_sine": None if self.stepped is None else self.stepped.summary(),
+            "phase_resonance": None if self.phase_resonance is None else self.phase_resonance.summary(),
+            "ringdown": [b.summary() for b in self.ringdown],
+            "joint_laws": {k: f.summary() for k, f in self.joint_laws.items()},
+            "errors": dict(self.errors),
+        }
+
+    def report(self) -> str:
+        lines = [f"Preload {self.preload}:"]
+        for b in (self.model, self.stepped, self.phase_resonance) + tuple(self.ringdown):
+            if b is not None:
+                lines.append("  " + b.report().replace("\n", "\n  "))
+        for f in self.joint_laws.values():
+            lines.append("  " + f.report().replace("\n", "\n  "))
+        for k, e in self.errors.items():
+            lines.append(f"  {k}: {e}")
+        return "\n".join(lines)
+
+    def plot(self, ax=None):
+        from ..report.backbone_plots import plot_backbones
+
+        curves = [b for b in (self.model, self.stepped, self.phase_resonance) + tuple(self.ringdown) if b is not None]
+        curves += [f.backbone(self.model.amplitude if self.model is not None else np.geomspace(
+            *sorted((f.amplitude.min(), f.amplitude.max())), 40), label=f"{f.law} law") for f in self.joint_laws.values()]
+        return plot_backbones(curves, ax=ax, title=f"preload {self.preload}")
+
+
+@dataclass(frozen=True, eq=False)
+class CampaignBackbones:
+    """:class:`PreloadBackbones` of every preload of a campaign (``results.json`` key ``backbones``)."""
+
+    preloads: tuple
+
+    def __getitem__(self, preload) -> PreloadBackbones:
+        for p in self.preloads:
+            if p.preload == preload:
+                return p
+        raise KeyError(preload)
+
+    def summary(self) -> list:
+        return [p.summary() for p in self.preloads]
+
+    def report(self) -> str:
+        return "\n\n".join(p.report() for p in self.preloads) or "no backbones"
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(self.report())}</pre>"
+
+
+def _structure_of(campaign, preload):
+    if campaign is None or getattr(campaign, "structure", None) is None and getattr(campaign, "structures", None) is None:
+        return None
+    from ..modal.structure import Structure
+
+    table = campaign.structure_for(preload) if getattr(campaign, "structures", None) else campaign.structure
+    return Structure.from_mapping(table, source=str(campaign.root / "campaign.toml"))
+
+
+def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction="rotation", n_points=40,
+                           **fit_options) -> CampaignBackbones:
+    """All backbones of an identified campaign (module docstring).
+
+    Parameters
+    ----------
+    result : CampaignResult
+    campaign : Campaign or path, optional
+        Needed for the ring-down records and the FE modes; default ``result.root``.
+    joint_laws : bool
+        Fit the joint laws when the structure has an FE model.
+    direction : {"rotation", "transverse"}
+        The joint's loaded direction.
+    n_points : int
+        Points of the model backbone.
+    **fit_options
+        Passed to :func:`jointid.signal.ringdown.fit_decay`.
+    """
+    from ..io.campaign import Campaign, load_campaign
+
+    if campaign is None and getattr(result, "root", None):
+        campaign = result.root
+    if campaign is not None and not isinstance(campaign, Campaign):
+        campaign = load_campaign(campaign)
+    models = getattr(result, "models", {}) or {}
+    specs = list(campaign.records) if campaign is not None else [r.spec for r in result.records]
+    preloads = []
+    for p in dict.fromkeys([s.preload for s in specs] + list(models)):
+        errors = {}
+        structure = None
+        try:
+            structure = _structure_of(campaign, p)
+        except JointidError as exc:
+            errors["structure"] = str(exc)
+        model_bb = None
+        if models.get(p) is not None:
+            try:
+                model_bb = preload_model_backbone(models[p], n_points=n_points, label=f"preload {p}")
+            except JointidError as exc:
+                errors["model"] = str(exc)
+        ok = [r for r in result.records if r.ok and r.spec.preload == p and r.signals is not None
+              and getattr(r.spec, "excitation", "stepped-sine") == "stepped-sine"]
+        stepped = res = None
+        if ok:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                stepped = equivalent_linearisation([r.signals for r in ok], force_level=[r.spec.force_level for r in ok],
+                                                   label=f"preload {p}")
+                res = phase_resonance_points(stepped, label=f"preload {p}")
+        rds = []
+        for s in specs:
+            if s.preload != p or getattr(s, "excitation", "") != "ringdown":
+                continue
+            try:
+                d = ringdown_decay(s, structure, **fit_options)
+                rds.append(d.backbone(label=f"{s.file}"))
+            except JointidError as exc:
+                errors[f"record {s.index}"] = str(exc)
+        pb = PreloadBackbones(p, model_bb, stepped, res, tuple(rds), {}, errors)
+        if joint_laws and structure is not None and structure.modes is not None:
+            meas = pb.measured()
+            if meas is not None and len(meas) >= 4:
+                try:
+                    z0 = float(np.nanmedian(meas.zeta[np.argsort(meas.amplitude)[:3]]))
+                    modes = JointModes.from_modal_model(structure.modes, direction, z0)
+                    pb = PreloadBackbones(p, model_bb, stepped, res, tuple(rds), fit_joint_laws(meas, modes, direction=direction),
+                                          errors)
+                except (JointidError, np.linalg.LinAlgError, ValueError) as exc:
+                    errors["joint_laws"] = str(exc)
+                    warnings.warn(f"preload {p}: joint laws not fitted ({exc})", JointidWarning, stacklevel=2)
+        preloads.append(pb)
+    return CampaignBackbones(tuple(preloads))

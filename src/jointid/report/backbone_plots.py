@@ -1,0 +1,83 @@
+"""Backbone figures: omega(a) and zeta(a) of a model, stepped-sine points and ring-downs, each with its band.
+
+Nothing is shown or saved here; every function returns ``(figure, (ax_omega, ax_zeta))``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .identify_plots import new_axes
+
+__all__ = ["plot_backbone", "plot_backbones", "joint_law_table"]
+
+_STYLE = {
+    "model": dict(fmt="-", marker=None),
+    "rig": dict(fmt="--", marker=None),
+    "stepped-sine": dict(fmt="o", marker="o"),
+    "phase-resonance": dict(fmt="s", marker="s"),
+    "ringdown": dict(fmt=".", marker="."),
+}
+
+
+def _axes(ax):
+    if ax is None:
+        axes = new_axes(None, figsize=(6.0, 6.0), nrows=2, ncols=1)
+        return axes[0].figure, (axes[0], axes[1])
+    if isinstance(ax, (tuple, list, np.ndarray)) and len(ax) == 2:
+        return ax[0].figure, (ax[0], ax[1])
+    raise ValueError("ax must be a pair of axes (omega, zeta)")
+
+
+def plot_backbone(backbone, ax=None, label=None, units="Hz"):
+    """Draw one backbone on a pair of axes (``omega`` or ``f`` above, ``zeta`` below), log amplitude.
+
+    Curves (``model``, ``rig``) are lines with a shaded 95 % band; measured points carry 95 %
+    error bars.
+    """
+    fig, (aw, az) = _axes(ax)
+    b = backbone.sorted()
+    k = 1 / (2 * np.pi) if units == "Hz" else 1.0
+    style = _STYLE.get(b.source, dict(fmt="o", marker="o"))
+    lab = label or (f"{b.source}" + (f" ({b.label})" if b.label else ""))
+    if style["marker"] is None:
+        (line,) = aw.plot(b.amplitude, k * b.omega, style["fmt"], label=lab)
+        az.plot(b.amplitude, b.zeta, style["fmt"], color=line.get_color())
+        if np.any(np.isfinite(b.omega_stderr) & (b.omega_stderr > 0)):
+            lo, hi = b.omega_band
+            aw.fill_between(b.amplitude, k * lo, k * hi, color=line.get_color(), alpha=0.2, lw=0)
+            lo, hi = b.zeta_band
+            az.fill_between(b.amplitude, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+    else:
+        se_w = np.nan_to_num(b.omega_stderr)
+        se_z = np.nan_to_num(b.zeta_stderr)
+        c = aw.errorbar(b.amplitude, k * b.omega, yerr=1.96 * k * se_w, fmt=style["fmt"], ms=3, capsize=1.5,
+                        label=lab)
+        az.errorbar(b.amplitude, b.zeta, yerr=1.96 * se_z, fmt=style["fmt"], ms=3, capsize=1.5,
+                    color=c.lines[0].get_color())
+    for a in (aw, az):
+        a.set_xscale("log")
+        a.grid(True, which="both", alpha=0.3)
+    aw.set_ylabel("natural frequency [Hz]" if units == "Hz" else "omega [rad/s]")
+    az.set_ylabel("damping ratio")
+    az.set_xlabel("first-harmonic amplitude a (modal)")
+    aw.legend(fontsize="small")
+    return fig, (aw, az)
+
+
+def plot_backbones(backbones, ax=None, title=None, units="Hz"):
+    """Several backbones on one pair of axes (a model curve, stepped-sine points, ring-downs ...)."""
+    fig, axes = _axes(ax) if ax is not None else (None, None)
+    for b in backbones:
+        fig, axes = plot_backbone(b, ax=axes, units=units)
+    if title and axes is not None:
+        axes[0].set_title(title)
+    return fig, axes
+
+
+def joint_law_table(fits) -> str:
+    """Plain-text table of joint-law fits (``{name: JointLawFit}``): parameters, 95 % intervals, adequacy."""
+    lines = []
+    for name, f in fits.items():
+        lines.append(f.report())
+    return "\n\n".join(lines)
