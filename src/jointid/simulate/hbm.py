@@ -177,22 +177,23 @@ def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
     tau = tau0 + (0.5 * h * (y0 - y2) / den if den < 0.0 else 0.0)
     a, b = x[a_idx], x[b_idx]
     ka, kb = kh * a, kh * b
-    kka, kkb = kh * ka, kh * kb
+    # one product gives dq/dtau, d2q/dtau2 and q (less the constant) from cos and sin
+    Mc = np.stack([kb, -(kh * ka), a])
+    Ms = np.stack([-ka, -(kh * kb), b])
     for _ in range(8):
-        e = np.exp(1j * tau * kh)
-        c, s = e.real, e.imag
-        d2 = -(kka @ c + kkb @ s)
+        ph = tau * kh
+        g, d2, _ = Mc @ np.cos(ph) + Ms @ np.sin(ph)
         if d2 == 0.0:
             break
-        step = (kb @ c - ka @ s) / d2
+        step = g / d2
         tau -= step
         if abs(tau - tau0) > h:  # left the neighbourhood of the grid maximum
             tau = tau0
             break
         if abs(step) < 1e-8:  # next correction ~ step^2: below round-off in the value
             break
-    e = np.exp(1j * tau * kh)
-    q_tau = a @ e.real + b @ e.imag + float(np.sum(x[const_idx]))
+    ph = tau * kh
+    q_tau = float((Mc[2] @ np.cos(ph) + Ms[2] @ np.sin(ph))) + float(np.sum(x[const_idx]))
     if abs(q_tau) < y1:  # never worse than the grid (guards a stray Newton)
         tau, q_tau = tau0, float(qd[i])
     return abs(q_tau), tau, (1.0 if q_tau >= 0 else -1.0)
@@ -283,10 +284,21 @@ class _Problem:
             if t is not q_lin and t is not v_lin
         )
         self.PED = self.P @ self.ED
+        self.laws = tuple(
+            (self.lib.index(name), tuple(float(c) for c in poly)) for name, poly in model.amplitude_laws.items()
+        )
+        self.law_der = tuple((j, tuple(float(c) for c in d)) for j, d in self.law_der)
         self.E_ED = np.vstack([self.E, self.ED])  # P diag(c) ED for a constant c (viscous damping)
         self._last_failure = ""
 
     # -- small helpers ---------------------------------------------------------------
+
+    def coefficients_at(self, q_max):
+        """``model.coefficients_at(q_max)`` (the same Horner sums, without array overhead)."""
+        theta = self.theta0.copy()
+        for j, poly in self.laws:
+            theta[j] = _horner(poly, float(q_max))
+        return theta
 
     def full(self, x):
         out = np.zeros(self.n)
@@ -359,7 +371,7 @@ class _Problem:
         """
         nx = self.active.size
         x = z[:nx]
-        theta = self.model.coefficients_at(z[nx]) if self.closure else self.theta0
+        theta = self.coefficients_at(z[nx]) if self.closure else self.theta0
         qd = self.E_ED @ x
         q, dv = qd[: self.N], qd[self.N :]
         v = omega * dv
@@ -404,7 +416,7 @@ class _Problem:
             qm = z[nx]
             dh = np.zeros_like(q)
             for j, dpoly in self.law_der:
-                d = float(np.polynomial.polynomial.polyval(qm, dpoly))
+                d = _horner(dpoly, qm)
                 if d != 0.0:
                     dh += d * self.lib.terms[j].func(q, v)
             J[:nx, nx] = self.P @ dh
@@ -835,6 +847,14 @@ class _Problem:
             model=self.model,
             floquet_exponents=None if floquet is None else _readonly(floquet),
         )
+
+
+def _horner(c, x):
+    """``sum c[i] x^i`` in the order of :func:`numpy.polynomial.polynomial.polyval`."""
+    y = c[-1] + x * 0.0
+    for ci in c[-2::-1]:
+        y = ci + y * x
+    return y
 
 
 def _solve(A, b):
