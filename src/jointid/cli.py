@@ -9,6 +9,7 @@ error; 130 interrupted (Ctrl-C), with the previous output set left as it was.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import warnings
 from pathlib import Path
@@ -78,6 +79,11 @@ def _add_identify_options(p):
                    help="use the manifest's frequency_hz as it is (by default it is checked on the force)")
     p.add_argument("--keep-flagged", action="store_true",
                    help="keep records flagged by the plausibility checks in the pooled fits (default: left out)")
+    p.add_argument("--channel-delay", default=None, metavar="estimate|SECONDS",
+                   help="delay of the response channel behind the force (voltage) channel: 'estimate' (from the "
+                        "dwells' damping, with a standard error) or a known value in seconds (default: none)")
+    p.add_argument("--no-reprediction", action="store_true",
+                   help="skip the harmonic-balance re-prediction of the measured FRFs")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no report on stdout")
 
@@ -231,6 +237,21 @@ def _modal(args) -> int:
     return EXIT_OK
 
 
+def _channel_delay(text):
+    """``--channel-delay``: None, "estimate" or a finite number of seconds."""
+    if text is None or text == "estimate":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        from .errors import IdentificationError
+
+        raise IdentificationError(f"--channel-delay: expected 'estimate' or a delay in seconds, got {text!r}")
+    return value
+
+
 def _identify(args) -> int:
     from .report.output import write_results
     from .app.workflow import identify_campaign
@@ -239,6 +260,7 @@ def _identify(args) -> int:
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
         weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency, jobs=args.jobs,
         scheduler=args.scheduler, progress=not args.quiet, keep_flagged=args.keep_flagged,
+        channel_delay=_channel_delay(args.channel_delay), repredict=not args.no_reprediction,
     )
     write_results(result, args.out, figures=not args.no_figures)
     if not args.quiet:

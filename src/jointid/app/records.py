@@ -58,6 +58,11 @@ class IdentifySettings:
         Address of an existing dask scheduler to run the records on (overrides ``jobs``).
     progress : bool
         Show a progress bar.
+    channel_delay : None, "estimate" or float
+        Delay [s] of the response channel behind the excitation channel: ``None``, no
+        correction; a number, a known delay; ``"estimate"``, estimated with its standard
+        error from the dwells' damping (:mod:`jointid.identify.delay`).  The records are
+        corrected before the groups are identified.
     repredict : bool
         Re-predict every group's measured FRF with its identified model by harmonic
         balance and compare the measured and identified hysteresis loops
@@ -77,6 +82,7 @@ class IdentifySettings:
     scheduler: str | None = None
     progress: bool = False
     repredict: bool = True
+    channel_delay: float | str | None = None
     keep_flagged: bool = False
 
     def __post_init__(self):
@@ -97,6 +103,7 @@ class IdentifySettings:
             "weighting": self.weighting,
             "force_gain": self.force_gain,
             "refine_frequency": self.refine_frequency,
+            "channel_delay": self.channel_delay,
             "keep_flagged": self.keep_flagged,
         }  # jobs, scheduler and progress do not change results
 

@@ -158,6 +158,9 @@ class Reprediction:
 
     def report(self) -> str:
         pts = self.point_rms_error_percent
+        if not np.isfinite(self.peak_predicted[0]):
+            return (f"preload {self.preload}, F = {self.force_level}: no re-predicted peak inside the band"
+                    + (f"; measured points rms {pts:.2f} %" if pts is not None else ""))
         return (f"preload {self.preload}, F = {self.force_level}: peak {self.peak_predicted[0]:.4f} Hz "
                 f"({self.peak_frequency_error_percent:+.3f} %), magnitude {self.peak_predicted[1]:.4g} "
                 f"({self.peak_amplitude_error_percent:+.2f} %) vs {self.reference_kind}"
@@ -260,7 +263,7 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
         Q_rec.append(_fundamental(fser) * gain)
     Q_rec = np.asarray(Q_rec)
     if measured is None:
-        m_rec = np.array([_fundamental(o.signals.acceleration) for o in members]) * gain / Q_rec * scale
+        m_rec = np.array([_fundamental(o.signals.acceleration) for o in members]) / Q_rec * scale
         order = np.argsort(f_rec)
         measured = (f_rec[order], m_rec[order])
     fm, Hm = (np.asarray(v, float) for v in measured)
@@ -306,6 +309,9 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
             peak_pred = (float(f_all[np.argmax(m_all)]), float(np.max(m_all)))
     except JointidError:
         pass
+    k_max = int(np.argmax(m_all))
+    if k_max in (0, m_all.size - 1):  # the response still grows at the end of the band: no peak in it
+        peak_pred = (float("nan"), float("nan"))
     # the measured peak: a parabola through the three largest dwells when they resolve the
     # predicted -3 dB band, else the largest dwell itself (a resolution-limited reference)
     above = f_all[m_all >= peak_pred[1] / np.sqrt(2.0)]

@@ -80,6 +80,8 @@ class CampaignResult:
     repredictions: tuple = ()  # Reprediction per group (jointid.app.reprediction)
     loops: tuple = ()  # measured vs identified hysteresis loop errors per group
     structures: dict = field(default_factory=dict)  # preload -> Structure (physical campaigns; Table 4)
+    channel_delay: object = None  # ChannelDelay applied to every record (jointid.identify.delay)
+    channel_delay_error: str | None = None
 
     @property
     def failed(self):
@@ -122,6 +124,8 @@ class CampaignResult:
                          "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
             "reprediction": {"groups": [r.summary() for r in self.repredictions], "loops": list(self.loops)},
             "structures": [{"preload": p, **s.summary()} for p, s in self.structures.items()],
+            "channel_delay": (self.channel_delay.summary() if self.channel_delay is not None
+                              else {"delay_s": None, "error": self.channel_delay_error}),
         }
 
     def report(self) -> str:
@@ -205,6 +209,12 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
 
     outcomes = flag_group_outliers(process_all(campaign.records, settings, to_modal))
     use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # records of the pooled fits
+    from .channel_delay import correct_channel_delay
+
+    outcomes, delay, delay_error = correct_channel_delay(outcomes, settings, use)
+    if delay_error:
+        warnings.warn(f"channel delay not estimated: {delay_error}", JointidWarning, stacklevel=3)
+    use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # after the correction
     for o in outcomes:
         for w, category in zip(o.warnings, o.warning_types):
             warnings.warn(w, category, stacklevel=3)  # 3: past the single-threaded wrapper
@@ -299,7 +309,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     result = CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors
     )
-    result = replace(result, structures=structures)
+    result = replace(result, structures=structures, channel_delay=delay, channel_delay_error=delay_error)
     if settings.repredict:
         from .reprediction import loop_errors, repredict_campaign
 

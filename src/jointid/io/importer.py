@@ -26,8 +26,19 @@ channels become which campaign columns::
 
 A record with a single source may give ``file = ...`` directly.  The channel given for a
 column is: for MAT a variable or struct path (``"Signal[0]"``, ``"data.force"``), for UFF a
-dataset label (id line or LMS node:direction), for HDF5 a dataset name, for CSV a column
-name.  The records are written as ``records/NNNN.csv`` with ``time`` first; a record that
+dataset label (id line or LMS node:direction), for HDF5 a dataset name of a jointid record
+or, in any other HDF5 file, a dataset path (``"/run1/daq/ai0"``), for CSV a column name.
+
+Column map
+    A column may also be a table ``{ channel = "Ch 3", unit = "g", scale = 0.5 }``: the values
+    are multiplied by ``scale`` and converted from ``unit`` to SI (:data:`UNIT_FACTORS`:
+    ``g``, ``mm``, ``mm/s``, ``mV``, ``kN`` ...).  ``time = "t [s]"`` names the time column of
+    a CSV file (or the time dataset of an HDF5 file) when it is not ``time``; a CSV or HDF5
+    source without a time column takes ``fs`` (sampling rate [Hz]) instead.
+Time window
+    ``window_s = [t0, t1]`` (in ``[import]`` or a record) keeps the samples with
+    ``t0 <= t < t1`` (e.g. the steady state of a dwell whose drive stops before the end of
+    the record).  The records are written as ``records/NNNN.csv`` with ``time`` first; a record that
 cannot be read is reported and left out, the others are written.
 
 The description is validated before any file is read, like a campaign manifest: UTF-8 text,
@@ -61,10 +72,18 @@ from .channels import Channels, merge_channels, validate_channels
 
 #: Keys of an import description, of its ``[import]`` table, of a record and of a source.
 DESCRIPTION_KEYS = ("campaign", "import", "record", "structure")
-IMPORT_KEYS = ("fs", "channels", "data_folder")
+IMPORT_KEYS = ("fs", "channels", "data_folder", "time", "window_s")
 RECORD_KEYS = ("file", "source", "channels", "fs", "frequency_hz", "force_level", "preload", "excitation",
-               "period_s")
-SOURCE_KEYS = ("file", "channels")
+               "period_s", "time", "window_s")
+SOURCE_KEYS = ("file", "channels", "time", "fs")
+#: Keys of a column of the column map given as a table.
+COLUMN_KEYS = ("channel", "unit", "scale")
+#: Factors from the units a column map may name to SI.
+UNIT_FACTORS = {
+    "": 1.0, "si": 1.0, "m": 1.0, "m/s": 1.0, "m/s^2": 1.0, "m/s2": 1.0, "n": 1.0, "v": 1.0, "s": 1.0, "rad": 1.0,
+    "mm": 1e-3, "um": 1e-6, "mm/s": 1e-3, "mm/s^2": 1e-3, "g": 9.80665, "mg": 9.80665e-3, "kn": 1e3, "mn": 1e-3,
+    "mv": 1e-3, "ms": 1e-3, "in": 0.0254, "in/s": 0.0254, "lbf": 4.4482216152605,
+}
 
 __all__ = ["ImportResult", "import_campaign", "read_source"]
 
@@ -83,8 +102,49 @@ class ImportResult:
         return "\n".join(lines)
 
 
-def read_source(path: Path, channels: dict, fs=None) -> Channels:
-    """Read ``channels`` (column -> source channel) from one file, by its extension."""
+def _uniform_time(n: int, fs, path, what) -> np.ndarray:
+    if fs is None:
+        raise RecordError(f"{path}: {what}; give the time column (time = \"...\") or the sampling rate fs")
+    return np.arange(n) / float(fs)
+
+
+def _read_hdf5_datasets(path: Path, channels: dict, fs=None, time=None) -> Channels:
+    """Channels from any HDF5 file by dataset path; time from a dataset or ``fs``."""
+    import h5py
+
+    data = {}
+    try:
+        with h5py.File(path, "r") as h5:
+            for out, src in channels.items():
+                node = h5.get(src)
+                if not isinstance(node, h5py.Dataset):
+                    raise RecordError(f"{path} [channel {out!r}]: no dataset {src!r} in the file")
+                x = np.asarray(node[()], dtype=float)
+                if x.ndim != 1:
+                    x = np.squeeze(x)
+                if x.ndim != 1:
+                    raise RecordError(f"{path} [channel {out!r}]: dataset {src!r} has shape {node.shape}, "
+                                      "expected one dimension")
+                data[out] = x
+            if time is not None:
+                node = h5.get(time)
+                if not isinstance(node, h5py.Dataset):
+                    raise RecordError(f"{path} [channel 'time']: no dataset {time!r} in the file")
+                t = np.asarray(node[()], dtype=float).ravel()
+            else:
+                t = _uniform_time(next(iter(data.values())).size, fs, path, "no time dataset")
+    except OSError as exc:
+        raise RecordError(f"{path}: not a readable HDF5 file ({exc})") from None
+    validate_channels(t, data, source=str(path), time_rtol=CSV_TIME_RTOL)
+    return Channels(t, data, source=str(path))
+
+
+def read_source(path: Path, channels: dict, fs=None, time=None) -> Channels:
+    """Read ``channels`` (column -> source channel) from one file, by its extension.
+
+    ``time`` names a CSV time column (default ``"time"``) or an HDF5 time dataset; without
+    one, ``fs`` gives the sampling rate.
+    """
     if not path.is_file():
         raise RecordFileNotFoundError(f"{path}: source file not found")
     suffix = path.suffix.lower()
@@ -97,6 +157,15 @@ def read_source(path: Path, channels: dict, fs=None) -> Channels:
 
         return read_uff(path, channels)
     if suffix in (".h5", ".hdf5"):
+        import h5py
+
+        try:
+            with h5py.File(path, "r") as h5:
+                jointid_layout = "channels" in h5 and time is None
+        except OSError as exc:
+            raise RecordError(f"{path}: not a readable HDF5 file ({exc})") from None
+        if not jointid_layout:
+            return _read_hdf5_datasets(path, channels, fs=fs, time=time)
         from .hdf5 import read_hdf5
 
         ch = read_hdf5(path, list(channels.values()))
@@ -116,14 +185,16 @@ def read_source(path: Path, channels: dict, fs=None) -> Channels:
             raise RecordError(f"{path}: CSV file must be UTF-8 text; it holds bytes that are not") from None
         except ValueError as exc:
             raise RecordError(f"{path}: not a numeric CSV with header {header} ({exc})") from exc
-        if "time" not in header:
-            raise RecordError(f"{path} [channel 'time']: missing column; found {header}")
+        tname = "time" if time is None else time
+        if tname not in header and (time is not None or fs is None):
+            raise RecordError(f"{path} [channel {tname!r}]: missing time column; found {header} "
+                              "(name it with time = \"...\" or give the sampling rate fs)")
         missing = [src for src in channels.values() if src not in header]
         if missing:
             raise RecordError(f"{path} [channel {missing[0]!r}]: missing column; found {header}")
         if rows.shape[1] != len(header):
             raise RecordError(f"{path}: header names {len(header)} columns but rows have {rows.shape[1]}")
-        t = rows[:, header.index("time")]
+        t = rows[:, header.index(tname)] if tname in header else _uniform_time(rows.shape[0], fs, path, "")
         data = {out: rows[:, header.index(src)] for out, src in channels.items()}
         # time stamps written as text: the campaign's tolerance, then the uniform grid they stand for
         validate_channels(t, data, source=str(path), time_rtol=CSV_TIME_RTOL)
@@ -133,14 +204,49 @@ def read_source(path: Path, channels: dict, fs=None) -> Channels:
 
 
 def _channel_map(value, ctx) -> dict:
-    """A ``column -> source channel`` table of non-empty texts, else a ManifestError."""
+    """A ``column -> source channel`` table (texts, or ``{channel, unit, scale}`` tables), else a ManifestError."""
     if not isinstance(value, dict):
         raise ManifestError(f"{ctx}channels must be a table column -> channel, e.g. "
                             f"{{ force = \"F\", accel = \"A1\" }}, got {value!r}")
     for k, v in value.items():
-        if not isinstance(v, str) or not v:
-            raise ManifestError(f"{ctx}channels.{k} must be a channel name (text), got {v!r}")
+        if isinstance(v, dict):
+            check_keys(v, COLUMN_KEYS, f"{ctx}channels.{k}: ")
+            if not isinstance(v.get("channel"), str) or not v["channel"]:
+                raise ManifestError(f"{ctx}channels.{k} needs channel = \"<name in the file>\", got {v!r}")
+            unit = v.get("unit", "")
+            if not isinstance(unit, str) or unit.strip().lower() not in UNIT_FACTORS:
+                raise ManifestError(f"{ctx}channels.{k}: unknown unit {unit!r}; known: "
+                                    f"{sorted(u for u in UNIT_FACTORS if u)} (or give scale)")
+            scale = _number(v.get("scale", 1.0), "scale", f"{ctx}channels.{k}: ")
+            if scale is None or scale == 0:
+                raise ManifestError(f"{ctx}channels.{k}: scale must be a finite non-zero number, got {v.get('scale')!r}")
+        elif not isinstance(v, str) or not v:
+            raise ManifestError(f"{ctx}channels.{k} must be a channel name (text) or a table "
+                                f"{{ channel = \"...\", unit = \"g\", scale = 1.0 }}, got {v!r}")
     return dict(value)
+
+
+def _split_map(channels: dict):
+    """``(column -> source channel, column -> factor to SI)`` of a column map."""
+    names, factors = {}, {}
+    for k, v in channels.items():
+        if isinstance(v, dict):
+            names[k] = v["channel"]
+            factors[k] = float(v.get("scale", 1.0)) * UNIT_FACTORS[v.get("unit", "").strip().lower()]
+        else:
+            names[k] = v
+    return names, factors
+
+
+def _window(value, ctx):
+    """``[t0, t1]`` with ``t0 < t1``, or None."""
+    if value is None:
+        return None
+    if (not isinstance(value, list) or len(value) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
+            or not value[0] < value[1]):
+        raise ManifestError(f"{ctx}window_s must be [t0, t1] in seconds with t0 < t1, got {value!r}")
+    return float(value[0]), float(value[1])
 
 
 def _sources(entry, i, defaults, ctx):
@@ -163,7 +269,9 @@ def _sources(entry, i, defaults, ctx):
         ch = _channel_map(s.get("channels", defaults), rctx)
         if not ch:
             raise ManifestError(f"{rctx}no channels for {s['file']!r} (give channels or [import].channels)")
-        out.append((s["file"], ch))
+        if "time" in s and (not isinstance(s["time"], str) or not s["time"]):
+            raise ManifestError(f"{rctx}'time' must be the name of a time column or dataset, got {s['time']!r}")
+        out.append((s["file"], ch, s.get("time"), s.get("fs")))
     return out
 
 
@@ -209,6 +317,11 @@ def _validate(d: dict, desc: Path):
         _label(entry.get("force_level"), "force_level", rctx)
         _label(entry.get("preload"), "preload", rctx)
         _excitation(entry, rctx)
+        _window(entry.get("window_s", imp.get("window_s")), rctx)
+        if "time" in entry and (not isinstance(entry["time"], str) or not entry["time"]):
+            raise ManifestError(f"{rctx}'time' must be the name of a time column or dataset, got {entry['time']!r}")
+    if "time" in imp and (not isinstance(imp["time"], str) or not imp["time"]):
+        raise ManifestError(f"{desc}: [import] time must be the name of a time column or dataset, got {imp['time']!r}")
     return head, imp, defaults, records, data_folder
 
 
@@ -231,9 +344,27 @@ def import_campaign(description, out_dir) -> ImportResult:
     entries, written, failed = [], [], []
     for i, entry in enumerate(records):
         try:
-            parts = [read_source(_source_path(data_folder, f, i), ch, fs=entry.get("fs", imp.get("fs")))
-                     for f, ch in _sources(entry, i, defaults, ctx)]
+            parts = []
+            for f, ch, t_name, s_fs in _sources(entry, i, defaults, ctx):
+                names, factors = _split_map(ch)
+                part = read_source(_source_path(data_folder, f, i), names,
+                                   fs=s_fs if s_fs is not None else entry.get("fs", imp.get("fs")),
+                                   time=t_name if t_name is not None else entry.get("time", imp.get("time")))
+                if factors:
+                    part = Channels(part.time, {k: part.data[k] * factors.get(k, 1.0) for k in part.names},
+                                    {k: ("SI" if k in factors else part.units.get(k, "")) for k in part.names},
+                                    source=part.source)
+                parts.append(part)
             rec = parts[0] if len(parts) == 1 else merge_channels(parts, source=f"record {i}")
+            win = _window(entry.get("window_s", imp.get("window_s")), f"{desc} [record {i}]: ")
+            if win is not None:
+                keep = (rec.time >= win[0]) & (rec.time < win[1])
+                if np.count_nonzero(keep) < 2:
+                    raise RecordError(f"{where(str(rec.source), i)}window_s {list(win)} holds "
+                                      f"{np.count_nonzero(keep)} samples of the record "
+                                      f"({rec.time[0]:.6g} .. {rec.time[-1]:.6g} s)")
+                rec = Channels(rec.time[keep], {k: rec.data[k][keep] for k in rec.names},
+                               dict(rec.units), source=rec.source)
             rel = f"records/{len(written):04d}.csv"
             write_csv_record(out / rel, rec.time, {k: rec.data[k] for k in rec.names})
         except ManifestError:
