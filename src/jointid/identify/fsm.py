@@ -28,7 +28,7 @@ from ..errors import IdentificationError, IllConditionedWarning
 from ..signal.harmonics import StateSignals
 from .regression import LstsqResult, lstsq_from_reduced, pooled_solve, reduce_blocks
 from .terms import TermLibrary, library
-from .uncertainty import PooledCovariance, RecordScores, ci95, pooled_covariance, record_scores, sandwich
+from .uncertainty import PooledCovariance, RecordScores, ci95, pooled_covariance, record_scores, sandwich, whitening
 
 __all__ = [
     "RecordFit",
@@ -77,25 +77,21 @@ def _ci_text(value, stderr) -> str:
     return "" if ci is None else f", 95 % [{ci[0]:.8g}, {ci[1]:.8g}]"
 
 
-def record_weights(fits, weighting) -> np.ndarray:
-    """Pooled-fit weight of each record from its own fit.
+def record_whitenings(fits, weighting) -> list:
+    """Weight of each record in a pooled regression, from its own fit.
 
     ``"noise"``: the inverse of the white-noise level that carries the same information as
-    the record's own fit under the noise model (``sqrt(tr(M^-1 V) / p)``), so each record
-    counts by the information its own regression holds; it is floored at ``1e-13`` of the
-    record's restoring-force scale so that noise-free records keep finite, equal weights.
-    ``"none"``: all ones.
+    the record's own fit under the noise model (evaluated at the record's own coefficients,
+    so the weights do not depend on the pooled estimate), see
+    :func:`~jointid.identify.uncertainty.whitening`: records count by the information their
+    own regression holds, whatever their noise levels.  ``"none"``: all records count alike.
     """
-    w = np.ones(len(fits))
-    if weighting == "none":
-        return w
-    for r, f in enumerate(fits):
-        R, n = f.reduced, f.n_samples
+    out = []
+    for f in fits:
         p = len(f.coefficients)
-        floor = 1e-13 * float(np.abs(R[:, p]).max()) / np.sqrt(n)
-        s = f.scores.effective_sigma(f.coefficients)
-        w[r] = 1.0 / max(s if np.isfinite(s) else 0.0, floor, np.finfo(float).tiny)
-    return w
+        floor = 1e-13 * float(np.abs(f.reduced[:, p]).max()) / np.sqrt(f.n_samples)
+        out.append(whitening(f.reduced, f.scores, f.coefficients, weighting=weighting, floor=floor))
+    return out
 
 
 @dataclass(frozen=True)
@@ -361,8 +357,7 @@ class PooledFit:
     condition_number : float
         Of the column-scaled pooled regression.
     weights : array
-        Weight of each record: the inverse of the white-noise level that carries the same
-        information as its own fit (:meth:`~jointid.identify.uncertainty.RecordScores.effective_sigma`).
+        Weight of each record (:func:`record_whitenings`).
     covariance : PooledCovariance or None
         Sandwich covariance of the shared and per-record coefficients (linear in the number
         of records); ``shared_stderr`` and ``own_stderr`` come from it.
@@ -473,8 +468,8 @@ class PooledForceStateMapping:
         default every damping-kind term (``q'``, ``|q'|q'`` ...) does and the stiffness
         terms are shared.
     weighting : {"noise", "none"}
-        ``"noise"`` weights each record by the inverse of the noise level its own fit
-        carries under the noise model (:func:`record_weights`).
+        ``"noise"``: each record is weighted by the inverse of the white-noise level that
+        carries the information of its own fit under the noise model (:func:`record_whitenings`).
     cond_limit : float
 
     Attributes
@@ -515,17 +510,18 @@ class PooledForceStateMapping:
         shared_idx, own_idx = split_terms(lib, self.per_record)
         ns, no, nr = len(shared_idx), len(own_idx), len(signals_list)
         nt = len(lib)
-        weights = record_weights(fits, self.weighting)
-        sol = pooled_solve([(f.reduced, f.n_samples) for f in fits], shared_idx, own_idx, nt, weights)
+        wh = record_whitenings(fits, self.weighting)
+        weights = np.array([w.scalar for w in wh])
+        sol = pooled_solve([(w.rows, f.n_samples) for w, f in zip(wh, fits)], shared_idx, own_idx, nt, np.ones(nr))
         order = shared_idx + own_idx
         V_list, g_list = [], []
         for r, f in enumerate(fits):
             theta = np.empty(nt)
             theta[shared_idx] = sol.shared
             theta[own_idx] = sol.own[r]
-            V = f.scores.covariance(theta)
+            V = wh[r].score_covariance(f.scores.covariance(theta))
             V_list.append(V[np.ix_(order, order)])
-            g_list.append(f.scores.score_q_max_covariance(theta)[order])
+            g_list.append(wh[r].score_cross(f.scores.score_q_max_covariance(theta))[order])
         cov = pooled_covariance(sol, V_list, ns, g_list, [f.scores.q_max_variance() for f in fits])
         shared_se = np.sqrt(np.clip(np.diag(cov.shared), 0.0, None))
         own_se = np.sqrt(np.clip(np.diagonal(cov.own, axis1=1, axis2=2), 0.0, None)).reshape(nr, no)

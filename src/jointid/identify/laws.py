@@ -164,7 +164,8 @@ def fit_damping_law(q_max, c, c_stderr=None, order=2, c_covariance=None, q_max_v
         size = C.d.shape[0] if isinstance(C, LowRankCovariance) else C.shape[0]
         if size != len(c):
             raise IdentificationError(f"c_covariance is for {size} records, c has {len(c)}")
-        C = LowRankCovariance(C.d[ok], C.U[ok], C.W) if isinstance(C, LowRankCovariance) else _Dense(C[np.ix_(ok, ok)])
+        C = (LowRankCovariance(C.d[ok], C.U[ok], C.W, C.W_inv) if isinstance(C, LowRankCovariance)
+             else _Dense(C[np.ix_(ok, ok)]))
     elif c_stderr is not None:
         C = LowRankCovariance(ss**2, np.zeros((n_ok, 0)), np.zeros((0, 0)))
     else:

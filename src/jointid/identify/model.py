@@ -23,7 +23,7 @@ import numpy as np
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
-from .fsm import COND_LIMIT, _check_terms, _ci_text, own_fits, pooled_inputs, record_weights
+from .fsm import COND_LIMIT, _check_terms, _ci_text, own_fits, pooled_inputs, record_whitenings
 from .regression import lstsq_from_reduced
 from .terms import library
 from .uncertainty import ci95, sandwich
@@ -258,7 +258,8 @@ class PreloadForceStateMapping:
         law (``{"q": 2}``: ``omega^2(q_max) = omega1^2 + s1 q_max + s2 q_max^2``) works alike.
     damping_order : int
     weighting : {"noise", "none"}
-        Record weights as in :class:`~jointid.identify.fsm.PooledForceStateMapping`.
+        Record weights as in :class:`~jointid.identify.fsm.PooledForceStateMapping`
+        (:func:`~jointid.identify.fsm.record_whitenings`).
     cond_limit : float
     filtered : bool
     preload : object
@@ -295,20 +296,21 @@ class PreloadForceStateMapping:
                 f"{context}an amplitude law of order {max(orders)} needs at least {max(orders) + 1} records, got {len(sigs)}"
             )
         fits = own_fits(lib, sigs, fits, self.filtered)
-        weights = record_weights(fits, self.weighting)
+        wh = record_whitenings(fits, self.weighting)
+        weights = np.array([w.scalar for w in wh])
         p = len(lib)
         q_max = np.array([f.q_max for f in fits])
         Es = [_expansion(orders, q) for q in q_max]
-        A = np.vstack([w * (f.reduced[:, :p] @ E) for w, f, (E, _) in zip(weights, fits, Es)])
-        b = np.concatenate([w * f.reduced[:, p] for w, f in zip(weights, fits)])
+        rows = [w.rows for w in wh]
+        A = np.vstack([r[:, :p] @ E for r, (E, _) in zip(rows, Es)])
+        b = np.concatenate([r[:, p] for r in rows])
         n_total = int(sum(f.n_samples for f in fits))
         res = lstsq_from_reduced(A, b, n_total)
         theta = res.coefficients
-        M = np.zeros((P, P))
+        M = A.T @ A
         V = np.zeros((P, P))
-        for w, f, (E, dE) in zip(weights, fits, Es):
-            M += w**2 * (E.T @ f.scores.gram @ E)
-            V += w**4 * (E.T @ f.scores.covariance(E @ theta, dE @ theta) @ E)
+        for w, f, (E, dE) in zip(wh, fits, Es):
+            V += E.T @ w.score_covariance(f.scores.covariance(E @ theta, dE @ theta)) @ E
         cov = sandwich(M, V)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         warn = []

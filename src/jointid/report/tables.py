@@ -75,12 +75,31 @@ def group_rows(result) -> list[dict]:
     return rows
 
 
+def _pm(value, stderr) -> str:
+    """``value ± stderr [lo, hi]`` with the normal 95 % interval."""
+    from ..identify.uncertainty import ci95
+
+    ci = ci95(value, stderr)
+    if ci is None:
+        return f"{value:.8g}" if value is not None else "-"
+    return f"{value:.8g} ± {stderr:.2g} [{ci[0]:.8g}, {ci[1]:.8g}]"
+
+
 def campaign_report(result) -> str:
     """Text report: groups (Table 5 analogue), damping laws (Table 2), power laws, failures."""
     out = [f"campaign {result.name!r}: {len(result.records)} records, {len(result.failed)} failed",
            f"terms: {' + '.join(result.settings.summary()['terms'])}, "
            f"{result.settings.n_harmonics} harmonics, damping law order {result.settings.damping_order}", ""]
-    out.append("Groups: pooled regression (shared omega1, k3; one c per record) and band average")
+    models = getattr(result, "models", {}) or {}
+    if models:
+        out.append("Preload models: one regression over all records of a preload, damping law inside "
+                   "(value ± standard error, 95 % interval)")
+        for p, m in models.items():
+            out.append("  " + (m.report().replace("\n", "\n  ") if m is not None
+                               else result.model_errors.get(p, "-")))
+        out.append("")
+    out.append("Groups (the paper's method, Table 5): pooled regression per force level (shared omega1, k3; "
+               "one c per record) and band average")
     out.append(
         format_table(
             group_rows(result),
@@ -88,8 +107,16 @@ def campaign_report(result) -> str:
             ["preload", "F", "records", "f1 [Hz]", "k3", "se(k3)", "f1 mean", "k3 mean", "n (U~F^n)"],
         )
     )
+    for g in result.groups:
+        pf = g.pooled
+        if pf is None or not np.isfinite(pf.omega1):
+            continue
+        txt = f"  preload {g.preload}, F {g.force_level}: omega1 = {_pm(pf.omega1, pf.omega1_stderr)} rad/s"
+        if "k3" in pf.shared_names:
+            txt += f", k3 = {_pm(pf.k3, pf.get_stderr('k3'))}"
+        out.append(txt)
     out.append("")
-    out.append("Damping laws c(q_max) (fitted to the pooled per-record c):")
+    out.append("Damping laws c(q_max) (the paper's two-step method: polynomial fitted to the pooled per-record c):")
     for p, law in result.damping_laws.items():
         out.append(f"  preload {p}: " + (law.report() if law is not None else result.damping_law_errors.get(p, "-")))
     out.append("")
