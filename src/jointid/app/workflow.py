@@ -18,7 +18,17 @@ from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning, JointidWarning
 from ..identify.fsm import PooledFit, PooledForceStateMapping, band_average
 from ..identify.gain import PooledGainForceStateMapping
-from ..identify.laws import PowerLaw, dissipated_energy, elastic_force_amplitude, fit_damping_law, fit_power_law
+from ..identify.laws import (
+    PowerLaw,
+    cycle_energy,
+    dissipated_energy,
+    elastic_force_amplitude,
+    fit_damping_law,
+    fit_power_law,
+    model_power_law,
+)
+from ..identify.model import PreloadForceStateMapping, PreloadModel
+from ..identify.uncertainty import LowRankCovariance, ci95
 from ..identify.terms import library
 from ..io.campaign import Campaign, load_campaign
 from .records import IdentifySettings, RecordOutcome, flag_group_outliers, process_all, process_record
@@ -43,7 +53,8 @@ class GroupResult:
         d = {"preload": self.preload, "force_level": self.force_level, "records": list(self.record_indices)}
         if self.gain is not None:
             g, se = self.gain.derived()["gain"]
-            d.update(force_gain=g, force_gain_stderr=se, omega1_per_record=list(self.gain.omega1_per_record))
+            d.update(force_gain=g, force_gain_stderr=se, force_gain_ci95=ci95(g, se),
+                     omega1_per_record=list(self.gain.omega1_per_record))
         if self.pooled is not None:
             d.update(
                 omega1=self.pooled.omega1,
@@ -51,6 +62,9 @@ class GroupResult:
                 f1_hz=self.pooled.omega1 / (2 * np.pi),
                 k3=self.pooled.k3,
                 k3_stderr=self.pooled.get_stderr("k3") if "k3" in self.pooled.shared_names else None,
+                omega1_ci95=ci95(self.pooled.omega1, self.pooled.omega1_stderr),
+                k3_ci95=ci95(self.pooled.k3, self.pooled.get_stderr("k3")) if "k3" in self.pooled.shared_names else None,
+                method="paper (Table 5): pooled fit per force level, omega1 and k3 shared, one c per record",
                 pooled=self.pooled.summary(),
             )
         if self.band is not None:
@@ -80,6 +94,8 @@ class CampaignResult:
     repredictions: tuple = ()  # Reprediction per group (jointid.app.reprediction)
     loops: tuple = ()  # measured vs identified hysteresis loop errors per group
     structures: dict = field(default_factory=dict)  # preload -> Structure (physical campaigns; Table 4)
+    models: dict = field(default_factory=dict)  # PreloadModel per preload (one regression over its records)
+    model_errors: dict = field(default_factory=dict)
     channel_delay: object = None  # ChannelDelay applied to every record (jointid.identify.delay)
     channel_delay_error: str | None = None
 
@@ -106,7 +122,7 @@ class CampaignResult:
             "jointid_version": __version__,
             "campaign": {"name": self.name, "folder": self.root},
             "settings": self.settings.summary(),
-            "records": [r.summary() for r in self.records],
+            "records": [_record_summary(r) for r in self.records],
             "groups": [g.summary() for g in self.groups],
             "damping_law": [
                 {"preload": p, **law.summary()} if law is not None else {"preload": p, "coefficients": None,
@@ -119,6 +135,11 @@ class CampaignResult:
                 for g in self.groups
             ],
             "n_records": len(self.records),
+            "models": [
+                self.models[p].summary() if self.models.get(p) is not None
+                else {"preload": p, "omega1": None, "error": self.model_errors.get(p)}
+                for p in sorted(set(self.models) | set(self.model_errors), key=_group_key)
+            ],
             "n_failed": len(self.failed),
             "flagged": [{"index": r.spec.index, "file": r.spec.file, "flags": [f.name for f in r.flags],
                          "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
@@ -160,6 +181,56 @@ def _gain_free(gain, terms) -> PooledFit:
 
 def _group_key(value):
     return (0, value) if isinstance(value, (int, float)) else (1, str(value))
+
+
+def _record_summary(r) -> dict:
+    """A record's summary with the 95 % intervals of its estimates and its measured energy per cycle."""
+    d = r.summary()
+    fit = r.fit
+    if fit is None:
+        return d
+    gain_free = getattr(r, "omega1_own", None) is not None
+    c_se = r.c_pooled_stderr if gain_free else fit.c_stderr
+    d.update(
+        c_stderr=c_se,
+        c_ci95=ci95(d.get("c"), c_se),
+        c_pooled_ci95=ci95(r.c_pooled, r.c_pooled_stderr),
+    )
+    if not gain_free:
+        d.update(
+            omega1_stderr=fit.omega1_stderr,
+            omega1_ci95=ci95(fit.omega1, fit.omega1_stderr),
+            ci95={n: ci95(v, s) for n, v, s in zip(fit.coefficient_names, fit.coefficients, fit.stderr)},
+        )
+    sc = fit.scores
+    if sc is not None and sc.force_coefficients is not None and r.signals is not None:
+        d["energy_measured"] = cycle_energy(sc.force_coefficients, r.signals.velocity.coefficients, r.signals.omega)
+    return d
+
+
+def _c_covariance(groups, members_of, idx):
+    """Covariance of the pooled per-record ``c`` of the records ``idx`` (one preload), low-rank per group,
+    with each record's ``var(q_max)`` and ``cov(c, q_max)``: keyword arguments of :func:`fit_damping_law`."""
+    parts, order, qv, cq = [], [], [], []
+    for g in groups:
+        members = members_of[(g.preload, g.force_level)]
+        sel = [j for j, i in enumerate(members) if i in idx]
+        if not sel:
+            continue
+        pf = g.pooled
+        if pf is None or pf.covariance is None or "c" not in pf.own_names:
+            return {}
+        jc = pf.own_names.index("c")
+        parts.append(pf.covariance.own_factor(jc, sel))
+        qv += list(pf.covariance.q_max_variance[sel])
+        cq += list(pf.covariance.own_q_max[sel, jc])
+        order += [members[j] for j in sel]
+    if sorted(order) != sorted(idx):
+        return {}
+    C = LowRankCovariance.stack(parts)
+    pos = [order.index(i) for i in idx]
+    return {"c_covariance": LowRankCovariance(C.d[pos], C.U[pos], C.W, C.W_inv),
+            "q_max_variance": np.array(qv)[pos], "c_q_max_covariance": np.array(cq)[pos]}
 
 
 def _record_structures(campaign, Structure):
@@ -245,7 +316,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                 warnings.simplefilter("ignore", JointidWarning)
                 if settings.force_gain == "known":
                     pooled = PooledForceStateMapping(settings.terms, weighting=settings.weighting).fit(
-                        sigs, context=ctx).result_
+                        sigs, context=ctx, fits=[outcomes[i].fit for i in members]).result_
                 else:
                     gain = PooledGainForceStateMapping(settings.terms, weighting=settings.weighting).fit(
                         sigs, context=ctx).result_
@@ -265,9 +336,13 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         groups.append(GroupResult(key[0], key[1], tuple(outcomes[i].spec.index for i in members), pooled, band,
                                   gain=gain))
 
-    # damping law per preload over all its records (pooled c)
+    # damping law per preload over all its records (pooled c): the paper's two-step method, with the
+    # full covariance of the per-record c (correlated through each group's shared coefficients)
+    index_of = {o.spec.index: i for i, o in enumerate(outcomes)}
+    members_of = {(g.preload, g.force_level): [index_of[x] for x in g.record_indices] for g in groups}
+    preloads = sorted({k[0] for k in keys}, key=_group_key)
     laws, law_errors = {}, {}
-    for preload in sorted({k[0] for k in keys}, key=_group_key):
+    for preload in preloads:
         idx = [i for i, o in enumerate(outcomes) if use[i] and o.spec.preload == preload and o.c_pooled is not None]
         try:
             laws[preload] = fit_damping_law(
@@ -275,10 +350,35 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                 [outcomes[i].c_pooled for i in idx],
                 [outcomes[i].c_pooled_stderr for i in idx],
                 order=settings.damping_order,
+                **_c_covariance([g for g in groups if g.preload == preload], members_of, idx),
             )
         except IdentificationError as exc:
             laws[preload] = None
             law_errors[preload] = f"preload {preload}: {exc}"
+
+    # one model per preload: a single regression over all its records with the damping law inside
+    models, model_errors = {}, {}
+    for preload in preloads:
+        idx = [i for i, o in enumerate(outcomes) if use[i] and o.spec.preload == preload]
+        if not idx:
+            continue
+        if settings.force_gain != "known":
+            models[preload] = None
+            model_errors[preload] = f"preload {preload}: the preload model needs a known force gain"
+            continue
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                models[preload] = PreloadForceStateMapping(
+                    settings.terms, damping_order=settings.damping_order, weighting=settings.weighting,
+                    preload=preload,
+                ).fit([outcomes[i].signals for i in idx], fits=[outcomes[i].fit for i in idx],
+                      context=f"preload {preload}: ").result_
+            for w in models[preload].warnings:
+                warnings.warn(w, IllConditionedWarning, stacklevel=3)
+        except IdentificationError as exc:
+            models[preload] = None
+            model_errors[preload] = f"preload {preload}: {exc}"
 
     # energy per cycle and power law per group
     final_groups = []
@@ -304,10 +404,28 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
             power = fit_power_law(F, U)
         except IdentificationError as exc:
             perr = f"preload {g.preload}, force level {g.force_level}: {exc}"
+        model = models.get(g.preload)
+        if model is not None and len(idx) >= 2:
+            # the preload model's energy and elastic force, n with an interval propagated from its covariance
+            sig = [outcomes[i].signals for i in idx]
+            states = [(s.displacement.coefficients, s.velocity.coefficients, s.omega, outcomes[i].fit.q_max)
+                      for s, i in zip(sig, idx)]
+            measured = [_record_summary(outcomes[i]).get("energy_measured") for i in idx]
+            try:
+                power = model_power_law(model, states, [np.nan if m is None else m for m in measured])
+                perr = None
+                for j, i in enumerate(idx):
+                    outcomes[i] = replace(outcomes[i], energy=float(power.energy[j]),
+                                          joint_force=float(power.force[j]))
+            except IdentificationError as exc:
+                perr = perr or f"preload {g.preload}, force level {g.force_level}: {exc}"
         final_groups.append(replace(g, power_law=power, power_law_error=perr))
 
+
+
     result = CampaignResult(
-        campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors
+        campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors,
+        models=models, model_errors=model_errors,
     )
     result = replace(result, structures=structures, channel_delay=delay, channel_delay_error=delay_error)
     if settings.repredict:
