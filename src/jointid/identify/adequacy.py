@@ -1,0 +1,428 @@
+"""Model-adequacy diagnostics: does the identified model hold for a preload's data?
+
+Three checks, each with the calibrated covariances of :mod:`jointid.identify.uncertainty`:
+
+* **equality across force levels** of the parameters a group fit shares (``omega1^2``,
+  ``k3`` ...): with ``theta_g`` and ``C_g`` the pooled fit of force level ``g`` (independent
+  records), ``chi^2 = sum_g (theta_g - theta_bar)^T C_g^-1 (theta_g - theta_bar)`` with
+  ``theta_bar`` the covariance-weighted mean, on ``(G - 1) k`` degrees of freedom, jointly and
+  per parameter.  A model that holds gives the same parameters at every level; a friction
+  joint fitted as a cubic spring gives a ``k3`` that falls with the level;
+* **per-record residual against the preload model**: each record's weighted misfit
+  ``|W_r (z_r - R_r theta_r)|^2 / p`` in its reduced space (about 1 when the model explains
+  the record to the noise); records far above their group's median are outliers
+  (:func:`~jointid.signal.checks.scale_outliers`), and a trend of the records' own
+  ``omega1`` with the acquisition order (beside ``q_max``) is a drift;
+* **explained fractions**: of the restoring force ``Q - q''`` (energy), and of its
+  harmonics above the first (where the nonlinear terms show).
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import stats
+
+from ..conventions import harmonic_index
+from ..errors import IdentificationError
+from ..signal.checks import scale_outliers
+from .fsm import record_whitenings
+from .model import _expansion
+from .uncertainty import scaled_inverse
+
+__all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equality", "record_adequacy",
+           "assess_preload", "check_adequacy", "P_LIMIT"]
+
+#: p-value below which a check says the model does not hold.
+P_LIMIT = 1e-3
+#: A record whose misfit is this many times its group's median is an outlier.
+OUTLIER_FACTOR = 10.0
+#: |t| of the order trend of the own omega1 above which a group drifts.
+DRIFT_T = 5.0
+
+
+def _p_text(p) -> str:
+    if not np.isfinite(p):
+        return "p unknown"
+    return "p < 1e-6" if p < 1e-6 else f"p = {p:.2g}"
+
+
+def model_name(terms) -> str:
+    """A family name for a term set (``"cubic"`` for ``q, -q^3, q'``), else the terms themselves."""
+    from .selection import DEFAULT_CANDIDATES
+    from .terms import library
+
+    names = set(library(list(terms)).names)
+    for c in DEFAULT_CANDIDATES:
+        if set(c.library.names) == names:
+            return c.name
+    return " + ".join(terms)
+
+
+@dataclass(frozen=True)
+class ParameterEquality:
+    """Test that one shared parameter is the same at every force level."""
+
+    name: str
+    levels: tuple
+    values: np.ndarray
+    stderr: np.ndarray
+    common: float
+    ratio: float
+    chi2: float
+    dof: int
+    p_value: float
+
+    @property
+    def differs(self) -> bool:
+        return bool(self.p_value < P_LIMIT)
+
+    def describe(self) -> str:
+        v = self.values
+        if (np.all(v > 0) or np.all(v < 0)) and self.ratio < 1.5:
+            change = f"changes by {100 * (self.ratio - 1):.2g} % across levels"
+        elif np.all(v > 0) or np.all(v < 0):
+            change = f"changes {self.ratio:.3g}x across levels"
+        else:
+            change = "changes sign across levels"
+        return f"{self.name} {change} ({_p_text(self.p_value)})"
+
+    def summary(self) -> dict:
+        return {"name": self.name, "levels": list(self.levels), "values": [float(x) for x in self.values],
+                "stderr": [float(x) for x in self.stderr], "common": float(self.common),
+                "ratio": float(self.ratio) if np.isfinite(self.ratio) else None, "chi2": float(self.chi2),
+                "dof": int(self.dof), "p_value": float(self.p_value), "differs": self.differs}
+
+
+@dataclass(frozen=True)
+class RecordAdequacy:
+    """One record against its preload model."""
+
+    record: object
+    level: object
+    q_max: float
+    misfit: float
+    explained_force: float
+    explained_harmonics: float
+    harmonic_share: float
+    outlier: bool = False
+    outlier_ratio: float = float("nan")
+    energies: tuple = field(default=(np.nan, np.nan, np.nan, np.nan), repr=False)  # force, its residual,
+    # harmonics above the first, their residual (sums of squares over the record)
+
+    def summary(self) -> dict:
+        def num(x):
+            return float(x) if np.isfinite(x) else None
+
+        return {"record": self.record, "level": self.level, "q_max": num(self.q_max), "misfit": num(self.misfit),
+                "explained_force": num(self.explained_force), "explained_harmonics": num(self.explained_harmonics),
+                "harmonic_share": num(self.harmonic_share), "outlier": bool(self.outlier),
+                "outlier_ratio": num(self.outlier_ratio)}
+
+
+@dataclass(frozen=True)
+class AdequacyResult:
+    """Adequacy of one preload's model.
+
+    Attributes
+    ----------
+    preload : object
+    terms : tuple of str
+    model_name : str
+    equality : tuple of ParameterEquality
+        Per shared parameter, across force levels.
+    joint_chi2, joint_dof, joint_p : float, int, float
+        Joint equality test of all shared parameters.
+    records : tuple of RecordAdequacy
+    drift : dict
+        Force level -> ``{"t": ..., "slope_per_record": ..., "drifts": bool}`` of the own ``omega1``.
+    adequate : bool
+        No check says the model does not hold.
+    messages : tuple of str
+    """
+
+    preload: object
+    terms: tuple
+    model_name: str
+    equality: tuple
+    joint_chi2: float
+    joint_dof: int
+    joint_p: float
+    records: tuple = ()
+    drift: dict = field(default_factory=dict)
+    adequate: bool = True
+    messages: tuple = ()
+
+    @property
+    def outliers(self) -> tuple:
+        return tuple(r.record for r in self.records if r.outlier)
+
+    def _fractions(self, attr):
+        """Energy-weighted fraction over all records and the lowest record's."""
+        v = np.array([getattr(r, attr) for r in self.records], float)
+        e = np.array([r.energies for r in self.records], float).reshape(-1, 4)
+        j = 0 if attr == "explained_force" else 2
+        ok = np.isfinite(e[:, j]) & np.isfinite(e[:, j + 1])
+        tot = 1.0 - float(np.sum(e[ok, j + 1]) / np.sum(e[ok, j])) if ok.any() and np.sum(e[ok, j]) > 0 else np.nan
+        v = v[np.isfinite(v)]
+        return (tot, float(np.min(v))) if v.size else (float("nan"), float("nan"))
+
+    def summary(self) -> dict:
+        def num(x):
+            return float(x) if np.isfinite(x) else None
+
+        ef, efmin = self._fractions("explained_force")
+        eh, ehmin = self._fractions("explained_harmonics")
+        mis = np.array([r.misfit for r in self.records], float)
+        return {
+            "preload": self.preload,
+            "terms": list(self.terms),
+            "model": self.model_name,
+            "adequate": bool(self.adequate),
+            "messages": list(self.messages),
+            "level_equality": {"chi2": num(self.joint_chi2), "dof": int(self.joint_dof), "p_value": num(self.joint_p),
+                               "parameters": [e.summary() for e in self.equality]},
+            "misfit_median": num(float(np.median(mis))) if mis.size else None,
+            "outliers": list(self.outliers),
+            "drift": {str(k): v for k, v in self.drift.items()},
+            "explained_force": num(ef),
+            "explained_force_min": num(efmin),
+            "explained_harmonics": num(eh),
+            "explained_harmonics_min": num(ehmin),
+            "records": [r.summary() for r in self.records],
+        }
+
+    def report(self) -> str:
+        head = f"preload {self.preload}: " if self.preload is not None else ""
+        verdict = "holds" if self.adequate else "does NOT hold"
+        lines = [f"{head}adequacy of the {self.model_name} model ({' + '.join(self.terms)}): {verdict}"]
+        if self.joint_dof:
+            lines.append(f"  equality across force levels: chi2 = {self.joint_chi2:.4g} on {self.joint_dof} dof "
+                         f"({_p_text(self.joint_p)})")
+        for e in self.equality:
+            vals = ", ".join(f"{v:.4g} ± {s:.2g}" for v, s in zip(e.values, e.stderr))
+            lines.append(f"    {e.describe()}: {vals}")
+        if self.records:
+            ef, efmin = self._fractions("explained_force")
+            eh, ehmin = self._fractions("explained_harmonics")
+            mis = np.median([r.misfit for r in self.records])
+            lines.append(f"  records: misfit median {mis:.3g} (1 = explained to the noise); restoring force explained "
+                         f"{100 * ef:.6g} % (lowest record {100 * efmin:.6g} %); harmonics above the first explained "
+                         f"{100 * eh:.3g} % over all records")
+        if self.outliers:
+            lines.append(f"  outlier records: {', '.join(str(o) for o in self.outliers)}")
+        lines += [f"  {m}" for m in self.messages]
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+    def plot(self, ax=None):
+        """Shared parameters at each force level with their 95 % intervals, relative to the common value."""
+        from ..report.selection_plots import plot_level_equality
+
+        return plot_level_equality(self, ax=ax)
+
+
+def level_equality(level_fits) -> tuple:
+    """Equality tests of the shared parameters across force levels.
+
+    Parameters
+    ----------
+    level_fits : sequence of (level, PooledFit)
+        The pooled fit of each force level (with its covariance).
+
+    Returns
+    -------
+    (tuple of ParameterEquality, joint chi2, joint dof, joint p)
+    """
+    level_fits = [(lv, f) for lv, f in level_fits if f is not None and f.covariance is not None]
+    if len(level_fits) < 2:
+        return (), float("nan"), 0, float("nan")
+    names = level_fits[0][1].shared_names
+    if any(f.shared_names != names for _, f in level_fits):
+        raise IdentificationError("the force levels' pooled fits have different shared parameters")
+    th = [np.asarray(f.shared, float) for _, f in level_fits]
+    Ci = [scaled_inverse(f.covariance.shared) for _, f in level_fits]
+    S = sum(Ci)
+    bar = scaled_inverse(S) @ sum(c @ t for c, t in zip(Ci, th))
+    chi2 = float(sum((t - bar) @ c @ (t - bar) for c, t in zip(Ci, th)))
+    dof = (len(th) - 1) * len(names)
+    out = []
+    levels = tuple(lv for lv, _ in level_fits)
+    for j, n in enumerate(names):
+        v = np.array([t[j] for t in th])
+        s = np.array([np.sqrt(max(f.covariance.shared[j, j], 0.0)) for _, f in level_fits])
+        w = 1.0 / np.maximum(s, 1e-300) ** 2
+        m = float(np.sum(w * v) / np.sum(w))
+        c2 = float(np.sum(w * (v - m) ** 2))
+        a = np.abs(v)
+        ratio = float(a.max() / a.min()) if a.min() > 0 else float("inf")
+        out.append(ParameterEquality(n, levels, v, s, m, ratio, c2, len(v) - 1, float(stats.chi2.sf(c2, len(v) - 1))))
+    return tuple(out), chi2, dof, float(stats.chi2.sf(chi2, dof))
+
+
+def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="noise") -> tuple:
+    """Each record against a preload model: misfit, explained fractions, outliers.
+
+    Parameters
+    ----------
+    model : PreloadModel
+    fits : sequence of RecordFit
+        The records' own fits with the model's terms (their reduced factors and noise sums).
+    signals_list : sequence of StateSignals
+    levels : sequence
+        Force level of each record (outliers are judged within a level).
+    labels : sequence, optional
+        Record labels (default the positions).
+    """
+    labels = list(range(len(fits))) if labels is None else list(labels)
+    wh = record_whitenings(fits, weighting)
+    p = len(model.terms)
+    out = []
+    for f, s, w, lab, lv in zip(fits, signals_list, wh, labels, levels):
+        if tuple(f.terms) != tuple(model.terms):
+            raise IdentificationError(f"record {lab}: its fit has terms {f.terms}, the model {model.terms}")
+        E, _ = _expansion(model.law_orders, f.q_max)
+        theta = E @ model.parameters
+        rows = w.rows
+        e = rows[:, :p] @ theta - rows[:, p]
+        misfit = float(e @ e) / p
+        R = f.reduced
+        yy = float(np.sum(R[: p + 1, p] ** 2))
+        rss = float(np.sum((R[:p, :p] @ theta - R[:p, p]) ** 2) + R[p, p] ** 2)
+        ef = 1.0 - rss / yy if yy > 0 else float("nan")
+        eh, share, yh, rh = _harmonic_fractions(f, s, theta)
+        out.append(RecordAdequacy(lab, lv, float(f.q_max), misfit, ef, eh, share, energies=(yy, rss, yh, rh)))
+    # outliers within each level: misfit far above the level's median
+    for lv in dict.fromkeys(levels):
+        idx = [i for i, x in enumerate(levels) if x == lv]
+        med = float(np.median([out[i].misfit for i in idx]))
+        flagged = scale_outliers({i: out[i].misfit for i in idx}, factor=OUTLIER_FACTOR)
+        for i, (ratio, _) in flagged.items():
+            if out[i].misfit > med:
+                r = out[i]
+                out[i] = replace(r, outlier=True, outlier_ratio=ratio)
+    return tuple(out)
+
+
+def _harmonic_fractions(fit, signals, theta):
+    """Explained fraction of the restoring force's harmonics above the first, and their share of it."""
+    sc = fit.scores
+    if sc is None or sc.force_coefficients is None or signals is None:
+        return (float("nan"),) * 4
+    alpha = np.asarray(signals.acceleration.coefficients, float)
+    y = np.asarray(sc.force_coefficients, float) - alpha
+    G = sc.basis_gram
+    m = np.linalg.solve(G, sc.phi_b.T @ theta)
+    k = harmonic_index((len(alpha) - 1) // 2)
+    hi = k >= 2
+    r = (y - m)[hi]
+    Gh = G[np.ix_(hi, hi)]
+    yh = float(y[hi] @ Gh @ y[hi])
+    total = float(y @ G @ y)
+    rh = float(r @ Gh @ r)
+    frac = 1.0 - rh / yh if yh > 0 else float("nan")
+    return frac, (float(np.sqrt(yh / total)) if total > 0 else float("nan")), yh, rh
+
+
+def _drift(fits, levels, labels):
+    """Trend of the records' own ``omega1`` with the acquisition order, beside ``q_max`` and ``q_max^2``."""
+    out = {}
+    for lv in dict.fromkeys(levels):
+        idx = [i for i, x in enumerate(levels) if x == lv]
+        w1 = np.array([fits[i].omega1 for i in idx])
+        se = np.array([fits[i].omega1_stderr for i in idx])
+        if len(idx) < 6 or not np.all(np.isfinite(w1)) or not np.all(se > 0):
+            continue
+        order = np.argsort(np.argsort([labels[i] for i in idx]))
+        q = np.array([fits[i].q_max for i in idx])
+        qs = q / np.max(q)
+        X = np.column_stack([np.ones(len(idx)), qs, qs**2, order]) / se[:, None]
+        b = w1 / se
+        coef, *_ = np.linalg.lstsq(X, b, rcond=None)
+        res = b - X @ coef
+        dof = max(len(idx) - 4, 1)
+        s2 = max(float(res @ res) / dof, 1.0)  # never below the calibrated noise
+        cov = s2 * scaled_inverse(X.T @ X)
+        t = float(coef[3] / np.sqrt(cov[3, 3])) if cov[3, 3] > 0 else 0.0
+        out[lv] = {"t": t, "slope_per_record": float(coef[3]), "drifts": bool(abs(t) > DRIFT_T)}
+    return out
+
+
+def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, weighting="noise",
+                   preload=None) -> AdequacyResult:
+    """All adequacy checks of one preload (see the module notes).
+
+    Parameters
+    ----------
+    model : PreloadModel or None
+        The preload model (per-record checks are skipped without it).
+    fits, signals_list, levels, labels
+        The preload's usable records: own fits with the model's terms, signals, force level, label.
+    level_fits : sequence of (level, PooledFit)
+        The pooled fit of each force level.
+    """
+    eq, chi2, dof, p = level_equality(level_fits)
+    terms = tuple(model.terms) if model is not None else tuple(level_fits[0][1].terms) if level_fits else ()
+    name = model_name(terms) if terms else "?"
+    msgs, adequate = [], True
+    differ = [e for e in eq if e.differs]
+    if dof and p < P_LIMIT:
+        adequate = False
+        what = "; ".join(e.describe() for e in differ) if differ else \
+            f"the shared parameters differ jointly ({_p_text(p)})"
+        msgs.append(f"{what}: the {name} model does not hold at this preload")
+    recs = ()
+    drift = {}
+    if model is not None and fits:
+        recs = record_adequacy(model, fits, signals_list, levels, labels, weighting)
+        out = [r.record for r in recs if r.outlier]
+        if out:
+            msgs.append(f"{len(out)} record(s) far off the model: {', '.join(str(o) for o in out)} (misfit more than "
+                        f"{OUTLIER_FACTOR:g} times their level's median)")
+        drift = _drift(fits, levels, labels if labels is not None else list(range(len(fits))))
+        dl = [lv for lv, d in drift.items() if d["drifts"]]
+        if dl:
+            msgs.append(f"own omega1 trends with the record order at force level(s) {', '.join(str(x) for x in dl)}: "
+                        f"drift during the test, or a dependence the model lacks")
+    return AdequacyResult(preload, terms, name, eq, chi2, dof, p, recs, drift, adequate, tuple(msgs))
+
+
+def check_adequacy(signals_list, levels, terms="q + -q^3 + q'", *, amplitude_laws=None, damping_order=2,
+                   weighting="noise", labels=None, preload=None) -> AdequacyResult:
+    """Fit the per-level pooled models and the preload model, then :func:`assess_preload`.
+
+    Parameters
+    ----------
+    signals_list : sequence of StateSignals
+    levels : sequence
+        Force level of each record.
+    terms, amplitude_laws, damping_order, weighting
+        As in :class:`~jointid.identify.model.PreloadForceStateMapping`.
+    """
+    import warnings
+
+    from ..errors import JointidWarning
+    from .fsm import PooledForceStateMapping, own_fits
+    from .model import PreloadForceStateMapping
+    from .terms import library
+
+    sigs = list(signals_list)
+    levels = list(levels)
+    if len(levels) != len(sigs):
+        raise IdentificationError(f"{len(levels)} force levels given for {len(sigs)} records")
+    lib = library(terms)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        fits = own_fits(lib, sigs)
+        level_fits = []
+        for lv in dict.fromkeys(levels):
+            idx = [i for i, x in enumerate(levels) if x == lv]
+            level_fits.append((lv, PooledForceStateMapping(lib, weighting=weighting).fit(
+                [sigs[i] for i in idx], fits=[fits[i] for i in idx]).result_))
+        model = PreloadForceStateMapping(lib, amplitude_laws=amplitude_laws, damping_order=damping_order,
+                                         weighting=weighting, preload=preload).fit(sigs, fits=fits).result_
+    return assess_preload(model, fits, sigs, levels, level_fits, labels, weighting, preload)

@@ -1,0 +1,671 @@
+"""Model-term selection: which restoring-force model does a preload's data support?
+
+The seed paper chooses ``q, -q^3, q'`` by hand.  :func:`select_model` ranks candidate
+models of one preload (terms plus amplitude laws, as fitted by
+:class:`~jointid.identify.model.PreloadForceStateMapping`) by two measures:
+
+* an information criterion on the **calibrated chi-square** of the regression.  Every
+  candidate is fitted in the reduced space of one common library (the union of all
+  candidates' terms), where record ``r`` contributes the rows ``W_r [R_r z_r]`` of its own
+  fit with the weights of :func:`~jointid.identify.fsm.record_whitenings`.  Under the
+  noise model of :mod:`jointid.identify.uncertainty` the error ``e_r = z_r - R_r theta`` has
+  covariance ``S_r = R_r^-T V_r R_r^-1``, so the weighted residual sum
+  ``sum |W_r e_r|^2 = sum lambda_i chi^2_1`` with ``lambda`` the eigenvalues of
+  ``W_r S_r W_r^T``.  Dividing by ``c = sum lambda^2 / sum lambda`` (Satterthwaite) gives a
+  chi-square with ``nu = (sum lambda)^2 / sum lambda^2`` degrees of freedom:
+  ``AIC = chi^2 / c + 2 P`` and ``BIC = chi^2 / c + P ln(nu)`` for a model of ``P`` parameters;
+* **leave-one-force-level-out cross-validation**: the model is fitted on the other force
+  levels and predicts the held-out level's restoring force (its calibrated chi-square per
+  record and degree of freedom, ``1`` for a model that explains the held-out level to the
+  noise) and its steady-state amplitudes, solved by harmonic balance at the held-out
+  records' frequencies and forcing (:func:`~jointid.simulate.hbm.frequency_response`).
+
+The model picked is the simplest one within noise of the best: among the candidates whose
+criterion is within ``delta`` (2) of the lowest, those whose cross-validated restoring-force
+score is within one standard error of the best of them; of these the one with the fewest
+parameters.  With many candidate terms, :func:`forward_selection` grows the model
+one term or law order at a time while the criterion drops by more than ``delta``.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg
+
+from .._blas import single_threaded
+from ..errors import IdentificationError, JointidError, JointidWarning
+from .fsm import own_fits, pooled_inputs, record_whitenings
+from .model import PreloadForceStateMapping, _expansion, law_orders, parameter_names
+from .regression import lstsq_from_reduced
+from .terms import TermLibrary, library
+
+__all__ = [
+    "Candidate",
+    "DEFAULT_CANDIDATES",
+    "FORWARD_POOL",
+    "CandidateScore",
+    "SelectionResult",
+    "select_model",
+    "forward_selection",
+    "single_mode_model",
+]
+
+#: A nonlinear parameter closer to zero than this many standard errors is not resolved.
+RESOLVED_T = 3.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate model: restoring-force terms and amplitude laws.
+
+    Parameters
+    ----------
+    name : str
+        Family name shown in the ranking (``"cubic"``).
+    terms : str
+        Term specification (:func:`~jointid.identify.terms.library`).
+    amplitude_laws : tuple of (str, int)
+        ``(term or coefficient, order)`` pairs; the other terms are constant.
+    """
+
+    name: str
+    terms: str
+    amplitude_laws: tuple = ()
+
+    @property
+    def library(self) -> TermLibrary:
+        return library(self.terms)
+
+    @property
+    def laws(self) -> dict:
+        return dict(self.amplitude_laws)
+
+    def orders(self) -> tuple:
+        return law_orders(self.library, self.laws)
+
+    @property
+    def n_parameters(self) -> int:
+        return int(sum(L + 1 for L in self.orders()))
+
+    def describe(self) -> str:
+        laws = ", ".join(f"{k}(q_max) order {v}" for k, v in self.amplitude_laws if v > 0)
+        return self.terms + (f"; {laws}" if laws else "")
+
+
+def _family(name, terms, damping_order=2, stiffness_order=0):
+    laws = [("q'", damping_order)]
+    if stiffness_order:
+        laws.insert(0, ("q", stiffness_order))
+    return Candidate(name, terms, tuple(laws))
+
+
+def default_candidates(damping_order=2) -> tuple:
+    """The physically motivated families, each with the damping law ``c(q_max)`` of ``damping_order``."""
+    return (
+        _family("linear", "q + q'", damping_order),
+        _family("cubic", "q - q^3 + q'", damping_order),
+        _family("quadratic + cubic", "q + q^2 - q^3 + q'", damping_order),
+        _family("cubic + quintic", "q - q^3 + q^5 + q'", damping_order),
+        _family("|q|q", "q + |q|q + q'", damping_order),
+        _family("Coulomb + viscous", "q + q' + sign(q')", damping_order),
+        _family("amplitude-dependent stiffness", "q + q'", damping_order, 2),
+    )
+
+
+#: The default candidate families (damping law of order 2).
+DEFAULT_CANDIDATES = default_candidates()
+#: Terms :func:`forward_selection` may add by default.
+FORWARD_POOL = ("-q^3", "q^2", "q^5", "|q|q", "sign(q')", "|q'|q'", "q'^3")
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """How one candidate fits a preload's records.
+
+    Attributes
+    ----------
+    candidate : Candidate
+    parameter_names : tuple of str
+    parameters, stderr : array
+        Fit to all records (sandwich standard errors, as the preload model's).
+    chi2 : float
+        Calibrated chi-square of the fit to all records (weighted residual / ``c``).
+    dof : float
+        Effective degrees of freedom ``nu - P``.
+    aic, bic : float
+    cv_force, cv_force_se : float
+        Leave-one-level-out restoring-force score (calibrated chi-square per held-out record
+        and degree of freedom; about 1 when the model explains the held-out level to the noise)
+        and its standard error over the held-out records.
+    cv_amplitude_rms_percent, cv_amplitude_max_percent : float
+        Rms and largest relative error of the held-out records' steady-state amplitude
+        predicted by harmonic balance [%] (``nan`` when not computed, ``inf`` when a
+        held-out level could not be solved).
+    unresolved : tuple of str
+        Nonlinear parameters less than ``RESOLVED_T`` standard errors from zero.
+    condition_number : float
+    error : str or None
+        Why the candidate could not be fitted.
+    """
+
+    candidate: Candidate
+    parameter_names: tuple = ()
+    parameters: np.ndarray = field(default=None, repr=False)
+    stderr: np.ndarray = field(default=None, repr=False)
+    chi2: float = float("nan")
+    dof: float = float("nan")
+    aic: float = float("inf")
+    bic: float = float("inf")
+    cv_force: float = float("nan")
+    cv_force_se: float = float("nan")
+    cv_amplitude_rms_percent: float = float("nan")
+    cv_amplitude_max_percent: float = float("nan")
+    unresolved: tuple = ()
+    condition_number: float = float("nan")
+    error: str | None = None
+
+    @property
+    def name(self) -> str:
+        return self.candidate.name
+
+    @property
+    def n_parameters(self) -> int:
+        return self.candidate.n_parameters
+
+    def summary(self) -> dict:
+        def num(x):
+            x = float(x)
+            return x if np.isfinite(x) else None
+
+        return {
+            "name": self.name,
+            "terms": self.candidate.terms,
+            "amplitude_laws": {k: int(v) for k, v in self.candidate.amplitude_laws},
+            "n_parameters": self.n_parameters,
+            "parameter_names": list(self.parameter_names),
+            "parameters": None if self.parameters is None else [float(v) for v in self.parameters],
+            "stderr": None if self.stderr is None else [float(v) for v in self.stderr],
+            "chi2": num(self.chi2),
+            "dof": num(self.dof),
+            "aic": num(self.aic),
+            "bic": num(self.bic),
+            "cv_force": num(self.cv_force),
+            "cv_force_se": num(self.cv_force_se),
+            "cv_amplitude_rms_percent": num(self.cv_amplitude_rms_percent),
+            "cv_amplitude_max_percent": num(self.cv_amplitude_max_percent),
+            "unresolved": list(self.unresolved),
+            "condition_number": num(self.condition_number),
+            "error": self.error,
+        }
+
+
+@dataclass(frozen=True)
+class SelectionResult:
+    """Ranking of candidate models of one preload and the model picked.
+
+    Attributes
+    ----------
+    preload : object
+    scores : tuple of CandidateScore
+        Ranked by the criterion (best first).
+    selected : str
+        Name of the model picked (simplest within noise of the best).
+    criterion : {"bic", "aic"}
+    delta : float
+        Criterion difference counted as "within noise".
+    levels : tuple
+        The force levels (cross-validation folds).
+    common_terms : tuple of str
+        The common library the candidates are compared in.
+    scale, nu : float
+        Satterthwaite factor ``c`` and degrees of freedom ``nu`` of the calibrated chi-square.
+    model : PreloadModel or None
+        The selected model fitted to all records by
+        :class:`~jointid.identify.model.PreloadForceStateMapping`.
+    method : str
+        ``"ranking"`` (all candidates) or ``"forward"`` (forward selection path).
+    """
+
+    preload: object
+    scores: tuple
+    selected: str
+    criterion: str
+    delta: float
+    levels: tuple
+    common_terms: tuple
+    scale: float
+    nu: float
+    model: object = field(default=None, repr=False)
+    method: str = "ranking"
+    n_records: int = 0
+
+    def score(self, name) -> CandidateScore:
+        for s in self.scores:
+            if s.name == name:
+                return s
+        raise KeyError(name)
+
+    @property
+    def best(self) -> CandidateScore:
+        return self.scores[0]
+
+    @property
+    def selected_score(self) -> CandidateScore:
+        return self.score(self.selected)
+
+    @property
+    def candidate(self) -> Candidate:
+        return self.selected_score.candidate
+
+    def table(self) -> list:
+        """Rows of the ranking table (dicts), best first, with the criterion difference."""
+        ic0 = getattr(self.best, self.criterion)
+        rows = []
+        for s in self.scores:
+            d = s.summary()
+            ic = getattr(s, self.criterion)
+            d["delta_ic"] = float(ic - ic0) if np.isfinite(ic) else None
+            d["selected"] = s.name == self.selected
+            rows.append(d)
+        return rows
+
+    def summary(self) -> dict:
+        return {
+            "preload": self.preload,
+            "selected": self.selected,
+            "selected_terms": self.candidate.terms,
+            "selected_amplitude_laws": {k: int(v) for k, v in self.candidate.amplitude_laws},
+            "criterion": self.criterion,
+            "delta": float(self.delta),
+            "rule": (f"fewest parameters among the models with {self.criterion.upper()} within {self.delta:g} of the "
+                     f"lowest and a cross-validated restoring-force score within one standard error of the best "
+                     f"of them"),
+            "method": self.method,
+            "levels": list(self.levels),
+            "n_records": int(self.n_records),
+            "common_terms": list(self.common_terms),
+            "chi2_scale": float(self.scale),
+            "chi2_nu": float(self.nu),
+            "ranking": self.table(),
+            "model": None if self.model is None else self.model.summary(),
+        }
+
+    def report(self) -> str:
+        head = f"preload {self.preload}: " if self.preload is not None else ""
+        lines = [f"{head}model selection over {len(self.levels)} force levels ({self.n_records} records), "
+                 f"ranked by {self.criterion.upper()} (calibrated chi-square, scale {self.scale:.3g}, "
+                 f"nu {self.nu:.4g})",
+                 f"  {'model':<30} {'P':>2} {'chi2':>10} {'d' + self.criterion.upper():>8} {'CV force':>14} "
+                 f"{'CV ampl. %':>10}  unresolved"]
+        for row in self.table():
+            mark = "*" if row["selected"] else " "
+            cv = "-" if row["cv_force"] is None else (f"{row['cv_force']:.3g}±{row['cv_force_se']:.2g}"
+                                                        if row["cv_force_se"] is not None else f"{row['cv_force']:.3g}")
+            amp = "-" if row["cv_amplitude_rms_percent"] is None else f"{row['cv_amplitude_rms_percent']:.3g}"
+            chi = "-" if row["chi2"] is None else f"{row['chi2']:.5g}"
+            dic = "-" if row["delta_ic"] is None else f"{row['delta_ic']:.4g}"
+            extra = ", ".join(row["unresolved"]) if row["error"] is None else f"failed: {row['error']}"
+            lines.append(f"{mark} {row['name']:<30} {row['n_parameters']:>2} {chi:>10} {dic:>8} {cv:>14} "
+                         f"{amp:>10}  {extra}")
+        lines.append(f"  selected: {self.selected} ({self.candidate.describe()}), the simplest model within noise "
+                     f"of the best")
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return "<pre>" + html.escape(self.report()) + "</pre>"
+
+    def plot(self, ax=None):
+        """Criterion differences and cross-validation scores of the ranking (bar chart)."""
+        from ..report.selection_plots import plot_selection
+
+        return plot_selection(self, ax=ax)
+
+
+# ----------------------------------------------------------------------------------------------
+# the common reduced space
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Record:
+    rows: np.ndarray  # W [R z] in the common library, (p, p + 1)
+    q_max: float
+    omega: float
+    forcing: float  # fundamental amplitude of the force
+    fit: object  # RecordFit in the common library
+    whitening: object  # its Whitening (record weight)
+
+
+class _Space:
+    """Records of one preload reduced once in the common library of all candidates."""
+
+    def __init__(self, lib, sigs, fits, weighting):
+        self.lib = lib
+        wh = record_whitenings(fits, weighting)
+        self.records = []
+        lam = []
+        for s, f, w in zip(sigs, fits, wh):
+            fc = f.scores.force_coefficients
+            forcing = float(np.hypot(fc[1], fc[2])) if fc is not None and np.all(np.isfinite(fc[:3])) else float("nan")
+            self.records.append(_Record(w.rows, float(f.q_max), float(s.omega), forcing, f, w))
+            # covariance of the weighted reduced error W (z - R theta) under the noise model
+            V = f.scores.covariance(f.coefficients)
+            A = linalg.solve_triangular(w.R, V, trans="T", check_finite=False)
+            S = linalg.solve_triangular(w.R, A.T, trans="T", check_finite=False).T
+            S = w.W @ S @ w.W.T
+            lam.append(np.clip(linalg.eigvalsh(0.5 * (S + S.T)), 0.0, None))
+        lam = np.concatenate(lam)
+        s1, s2 = float(np.sum(lam)), float(np.sum(lam**2))
+        self.scale = s2 / s1 if s1 > 0 else 1.0
+        self.nu = s1**2 / s2 if s2 > 0 else float(lam.size)
+        self.p = len(lib)
+
+    def columns(self, cand_lib):
+        try:
+            return [self.lib.index(t.name) for t in cand_lib]
+        except KeyError as exc:
+            raise IdentificationError(f"candidate term not in the common library {self.lib.names}: {exc}") from exc
+
+    def design(self, cols, orders, idx):
+        """Stacked weighted rows ``A theta ~ b`` of the records ``idx``."""
+        A, b = [], []
+        for i in idx:
+            r = self.records[i]
+            E, _ = _expansion(orders, r.q_max)
+            A.append(r.rows[:, cols] @ E)
+            b.append(r.rows[:, self.p])
+        return np.vstack(A), np.concatenate(b)
+
+    def residuals(self, cols, orders, theta, idx):
+        """Weighted residual sum of every record of ``idx``."""
+        out = []
+        for i in idx:
+            r = self.records[i]
+            E, _ = _expansion(orders, r.q_max)
+            e = r.rows[:, cols] @ (E @ theta) - r.rows[:, self.p]
+            out.append(float(e @ e))
+        return np.array(out)
+
+    def fit(self, cols, orders, idx):
+        A, b = self.design(cols, orders, idx)
+        n = int(sum(self.records[i].fit.n_samples for i in idx))
+        res = lstsq_from_reduced(A, b, n)
+        return res.coefficients, res.condition_number, A
+
+    def covariance(self, cols, orders, theta, A, idx):
+        """Sandwich covariance of ``theta`` (score covariances of the common library)."""
+        from .uncertainty import sandwich
+
+        P = A.shape[1]
+        V = np.zeros((P, P))
+        for i in idx:
+            r = self.records[i]
+            E, dE = _expansion(orders, r.q_max)
+            Ec = np.zeros((self.p, P))
+            dEc = np.zeros((self.p, P))
+            Ec[cols] = E
+            dEc[cols] = dE
+            Vs = r.whitening.score_covariance(r.fit.scores.covariance(Ec @ theta, dEc @ theta))
+            V += Ec.T @ Vs @ Ec
+        return sandwich(A.T @ A, V)
+
+
+def single_mode_model(lib, orders, theta):
+    """The :class:`~jointid.simulate.model.SingleModeModel` of fitted preload-model parameters."""
+    from ..simulate.model import SingleModeModel
+
+    coefs, laws, k = [], {}, 0
+    for t, L in zip(lib, orders):
+        if L == 0:
+            coefs.append(float(theta[k]))
+        else:
+            coefs.append(0.0)
+            laws[t.coefficient] = tuple(float(x) for x in theta[k : k + L + 1])
+        k += L + 1
+    return SingleModeModel(lib, tuple(coefs), laws)
+
+
+def _predicted_amplitudes(lib, orders, theta, space, idx, n_harmonics):
+    """Harmonic-balance ``q_max`` at the records ``idx`` (one forcing: their mean fundamental)."""
+    from ..simulate.hbm import frequency_response
+
+    model = single_mode_model(lib, orders, theta)
+    if "q" not in lib.names or model.coefficients_at(0.0)[lib.index("q")] <= 0:
+        return np.full(len(idx), np.inf)
+    recs = [space.records[i] for i in idx]
+    F = float(np.nanmean([r.forcing for r in recs]))
+    omegas = np.array([r.omega for r in recs])
+    order = np.argsort(omegas)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        frf = frequency_response(model, F, omegas[order], n_harmonics=n_harmonics, stability=False)
+    out = np.empty(len(idx))
+    out[order] = np.asarray(frf.q_max, float)
+    return out
+
+
+def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv_amplitude):
+    lib = cand.library
+    cols = space.columns(lib)
+    orders = law_orders(lib, cand.laws)
+    names = parameter_names(lib, orders)
+    P = len(names)
+    all_idx = list(range(len(space.records)))
+    if len(all_idx) * space.p <= P:
+        return CandidateScore(cand, names, error=f"{P} parameters from {len(all_idx)} records")
+    theta, cond, A = space.fit(cols, orders, all_idx)
+    if not np.all(np.isfinite(theta)):
+        return CandidateScore(cand, names, error="singular regression")
+    chi2 = float(np.sum(space.residuals(cols, orders, theta, all_idx))) / space.scale
+    aic = chi2 + 2.0 * P
+    bic = chi2 + P * math.log(max(space.nu, 2.0))
+    cov = space.covariance(cols, orders, theta, A, all_idx)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    unresolved = tuple(n for n, v, s, t in zip(names, theta, se, _param_terms(lib, orders))
+                       if t.name not in ("q", "q'") and not (abs(v) > RESOLVED_T * s))
+    kw = dict(parameter_names=names, parameters=theta, stderr=se, chi2=chi2, dof=space.nu - P, aic=aic, bic=bic,
+              unresolved=unresolved, condition_number=float(cond))
+    if criterion_only or len(level_values) < 2:
+        return CandidateScore(cand, **kw)
+    per_record, amp_err = [], []
+    for lev in level_values:
+        test = [i for i in all_idx if levels_of[i] == lev]
+        train = [i for i in all_idx if levels_of[i] != lev]
+        if len(train) * space.p <= P:
+            per_record += [np.inf] * len(test)
+            continue
+        th, _, _ = space.fit(cols, orders, train)
+        per_record += list(space.residuals(cols, orders, th, test) / space.p)
+        if cv_amplitude:
+            try:
+                q_pred = _predicted_amplitudes(lib, orders, th, space, test, n_harmonics)
+                q_meas = np.array([space.records[i].q_max for i in test])
+                amp_err += list(100.0 * (q_pred / q_meas - 1.0))
+            except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError):
+                amp_err += [np.inf] * len(test)  # a held-out level the model cannot solve
+    e = np.asarray(per_record, float)
+    cvf = float(np.mean(e))
+    cvse = float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 and np.all(np.isfinite(e)) else float("nan")
+    if amp_err:
+        a = np.asarray(amp_err, float)
+        kw.update(cv_amplitude_rms_percent=float(np.sqrt(np.mean(a**2))),
+                  cv_amplitude_max_percent=float(np.max(np.abs(a))))
+    return CandidateScore(cand, cv_force=cvf, cv_force_se=cvse, **kw)
+
+
+def _param_terms(lib, orders):
+    return [t for t, L in zip(lib, orders) for _ in range(L + 1)]
+
+
+def _pick(scores, criterion, delta):
+    """The simplest model within noise of the best (see the module notes).
+
+    Among the models whose criterion is within ``delta`` of the lowest, those whose
+    cross-validated restoring-force score is within one standard error of the best score
+    among them are kept; the one with the fewest parameters (then the lowest criterion) wins.
+    """
+    ok = [s for s in scores if s.error is None and np.isfinite(getattr(s, criterion))]
+    if not ok:
+        raise IdentificationError("no candidate model could be fitted")
+    ic0 = min(getattr(s, criterion) for s in ok)
+    near = [s for s in ok if getattr(s, criterion) <= ic0 + delta]
+    cv = [s for s in near if np.isfinite(s.cv_force)]
+    if cv:
+        b = min(cv, key=lambda s: s.cv_force)
+        limit = b.cv_force + (b.cv_force_se if np.isfinite(b.cv_force_se) else 0.0)
+        near = [s for s in cv if s.cv_force <= limit]
+    return min(near, key=lambda s: (s.n_parameters, getattr(s, criterion))).name
+
+
+def _prepare(signals_list, levels, candidate_libs, weighting, filtered, fits):
+    sigs = pooled_inputs(signals_list, weighting, "model selection")
+    levels = list(levels)
+    if len(levels) != len(sigs):
+        raise IdentificationError(f"{len(levels)} force levels given for {len(sigs)} records")
+    terms = {}
+    for lib in candidate_libs:
+        for t in lib:
+            terms.setdefault(t.name, t)
+    common = library(list(terms.values()))
+    fits = own_fits(common, sigs, fits, filtered)
+    return sigs, levels, common, _Space(common, sigs, fits, weighting)
+
+
+def _unique_levels(levels):
+    out = []
+    for v in levels:
+        if v not in out:
+            out.append(v)
+    return out
+
+
+def _candidates(candidates, damping_order):
+    if candidates is None:
+        return default_candidates(damping_order)
+    out = []
+    for c in candidates:
+        if isinstance(c, Candidate):
+            out.append(c)
+        elif isinstance(c, str):
+            out.append(Candidate(c, c, tuple((t.name, damping_order) for t in library(c) if t.name == "q'")))
+        else:
+            name, terms, laws = c
+            out.append(Candidate(name, terms, tuple(dict(laws).items())))
+    names = [c.name for c in out]
+    if len(set(names)) != len(names):
+        raise IdentificationError(f"candidate names must be distinct, got {names}")
+    return tuple(out)
+
+
+@single_threaded
+def select_model(signals_list, levels, candidates=None, *, criterion="bic", delta=2.0, damping_order=2,
+                 weighting="noise", filtered=True, cross_validate=True, cv_amplitude=True, n_harmonics=5,
+                 preload=None, fit_selected=True) -> SelectionResult:
+    """Rank candidate models of one preload and pick the simplest within noise of the best.
+
+    Parameters
+    ----------
+    signals_list : sequence of StateSignals
+        The usable records of one preload.
+    levels : sequence
+        Force level of each record (the cross-validation folds).
+    candidates : sequence, optional
+        :class:`Candidate` objects, term strings (damping law of ``damping_order`` on ``q'``)
+        or ``(name, terms, {term: order})`` tuples; default :func:`default_candidates`.
+    criterion : {"bic", "aic"}
+    delta : float
+        Criterion difference counted as within noise.
+    cross_validate, cv_amplitude : bool
+        Leave-one-force-level-out scores (restoring force; steady-state amplitude by
+        harmonic balance).
+    n_harmonics : int
+        Harmonics of the harmonic balance.
+    preload : object
+        Label stored on the result.
+    fit_selected : bool
+        Fit the selected model to all records with
+        :class:`~jointid.identify.model.PreloadForceStateMapping` (stored as ``model``).
+
+    Returns
+    -------
+    SelectionResult
+    """
+    if criterion not in ("aic", "bic"):
+        raise IdentificationError(f"criterion must be 'aic' or 'bic', got {criterion!r}")
+    cands = _candidates(candidates, damping_order)
+    sigs, levels, common, space = _prepare(signals_list, levels, [c.library for c in cands], weighting, filtered,
+                                           None)
+    lv = _unique_levels(levels)
+    scores = [_score(space, c, levels, lv, not cross_validate, n_harmonics, cv_amplitude) for c in cands]
+    return _result(scores, criterion, delta, lv, common, space, sigs, preload, weighting, filtered, fit_selected,
+                   "ranking")
+
+
+def _result(scores, criterion, delta, lv, common, space, sigs, preload, weighting, filtered, fit_selected, method):
+    scores = sorted(scores, key=lambda s: (getattr(s, criterion), s.n_parameters))
+    chosen = _pick(scores, criterion, delta)
+    model = None
+    if fit_selected:
+        cand = next(s.candidate for s in scores if s.name == chosen)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointidWarning)
+            model = PreloadForceStateMapping(cand.terms, amplitude_laws=cand.laws, weighting=weighting,
+                                             filtered=filtered, preload=preload).fit(sigs).result_
+    return SelectionResult(preload, tuple(scores), chosen, criterion, float(delta), tuple(lv), common.names,
+                           space.scale, space.nu, model, method, len(sigs))
+
+
+@single_threaded
+def forward_selection(signals_list, levels, *, base="q + q'", pool=FORWARD_POOL, stiffness_law_max=2,
+                      criterion="bic", delta=2.0, damping_order=2, weighting="noise", filtered=True,
+                      cross_validate=True, cv_amplitude=True, n_harmonics=5, preload=None,
+                      fit_selected=True) -> SelectionResult:
+    """Sparse search: grow the model from ``base`` one term (or stiffness-law order) at a time.
+
+    At each step every remaining term of ``pool`` and one more order of the law of the
+    linear stiffness (up to ``stiffness_law_max``) are tried; the move that lowers the
+    criterion most is taken while it lowers it by more than ``delta``.  The models of the
+    path are then ranked as in :func:`select_model` (with cross-validation).
+    """
+    if criterion not in ("aic", "bic"):
+        raise IdentificationError(f"criterion must be 'aic' or 'bic', got {criterion!r}")
+    base_lib = library(base)
+    pool_lib = library(pool)
+    libs = [base_lib, pool_lib]
+    sigs, levels, common, space = _prepare(signals_list, levels, libs, weighting, filtered, None)
+    lv = _unique_levels(levels)
+
+    def make(terms, s_order):
+        lib = library(terms)
+        laws = [(t.name, damping_order) for t in lib if t.kind == "damping" and t.name == "q'"]
+        if s_order:
+            laws.insert(0, ("q", s_order))
+        name = " + ".join(terms) + (f"; q(q_max) order {s_order}" if s_order else "")
+        return Candidate(name, " + ".join(terms), tuple(laws))
+
+    terms, s_order = list(base_lib.names), 0
+    current = _score(space, make(terms, s_order), levels, lv, True, n_harmonics, False)
+    path = [current]
+    while True:
+        moves = [(terms + [t], s_order) for t in pool_lib.names if t not in terms]
+        if "q" in terms and s_order < stiffness_law_max:
+            moves.append((terms, s_order + 1))
+        trial = [_score(space, make(t, s), levels, lv, True, n_harmonics, False) for t, s in moves]
+        trial = [(s, m) for s, m in zip(trial, moves) if s.error is None]
+        if not trial:
+            break
+        best, move = min(trial, key=lambda x: getattr(x[0], criterion))
+        if getattr(best, criterion) >= getattr(current, criterion) - delta:
+            break
+        terms, s_order = list(move[0]), move[1]
+        current = best
+        path.append(best)
+    if cross_validate:
+        path = [_score(space, s.candidate, levels, lv, False, n_harmonics, cv_amplitude) for s in path]
+    return _result(path, criterion, delta, lv, common, space, sigs, preload, weighting, filtered, fit_selected,
+                   "forward")
