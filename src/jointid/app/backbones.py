@@ -30,7 +30,7 @@ from ..identify.jointlaw import JointModes, fit_joint_laws
 from ..signal.ringdown import fit_decay
 
 __all__ = ["PreloadBackbones", "CampaignBackbones", "preload_model_backbone", "ringdown_decay",
-           "backbone_from_campaign"]
+           "backbone_from_campaign", "campaign_backbones"]
 
 
 def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, label="") -> Backbone:
@@ -178,6 +178,7 @@ class CampaignBackbones:
     """:class:`PreloadBackbones` of every preload of a campaign (``results.json`` key ``backbones``)."""
 
     preloads: tuple
+    error: str | None = None
 
     def __getitem__(self, preload) -> PreloadBackbones:
         for p in self.preloads:
@@ -185,17 +186,31 @@ class CampaignBackbones:
                 return p
         raise KeyError(preload)
 
-    def summary(self) -> list:
-        return [p.summary() for p in self.preloads]
+    def summary(self) -> dict:
+        return {"preloads": [p.summary() for p in self.preloads], "error": self.error}
 
     def report(self) -> str:
-        return "\n\n".join(p.report() for p in self.preloads) or "no backbones"
+        text = "\n\n".join(p.report() for p in self.preloads) or "no backbones"
+        return text + (f"\nbackbones: {self.error}" if self.error else "")
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(self.report())}</pre>"
 
 
-def _structure_of(campaign, preload):
+def campaign_backbones(result, campaign=None) -> CampaignBackbones:
+    """:func:`backbone_from_campaign` that never raises: a failure is kept in ``error``."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return backbone_from_campaign(result, campaign)
+    except (JointidError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return CampaignBackbones((), f"{type(exc).__name__}: {exc}")
+
+
+def _structure_of(campaign, preload, result=None):
+    known = getattr(result, "structures", None) or {}
+    if preload in known:
+        return known[preload]
     if campaign is None or getattr(campaign, "structure", None) is None and getattr(campaign, "structures", None) is None:
         return None
     from ..modal.structure import Structure
@@ -235,7 +250,7 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
         errors = {}
         structure = None
         try:
-            structure = _structure_of(campaign, p)
+            structure = _structure_of(campaign, p, result)
         except JointidError as exc:
             errors["structure"] = str(exc)
         model_bb = None
