@@ -156,6 +156,13 @@ class AdequacyResult:
     messages: tuple = ()
 
     @property
+    def verdict(self) -> str:
+        """One line: the model holds, or the first reason it does not."""
+        if self.adequate:
+            return f"the {self.model_name} model holds" + (f" ({self.messages[0]})" if self.messages else "")
+        return self.messages[0] if self.messages else f"the {self.model_name} model does not hold"
+
+    @property
     def outliers(self) -> tuple:
         return tuple(r.record for r in self.records if r.outlier)
 
@@ -181,6 +188,7 @@ class AdequacyResult:
             "terms": list(self.terms),
             "model": self.model_name,
             "adequate": bool(self.adequate),
+            "verdict": self.verdict,
             "messages": list(self.messages),
             "level_equality": {"chi2": num(self.joint_chi2), "dof": int(self.joint_dof), "p_value": num(self.joint_p),
                                "parameters": [e.summary() for e in self.equality]},

@@ -278,6 +278,7 @@ class SelectionResult:
         return {
             "preload": self.preload,
             "selected": self.selected,
+            "verdict": f"selected {self.selected}: {self.candidate.describe()}",
             "selected_terms": self.candidate.terms,
             "selected_amplitude_laws": {k: int(v) for k, v in self.candidate.amplitude_laws},
             "criterion": self.criterion,
