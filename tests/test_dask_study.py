@@ -24,10 +24,14 @@ from test_study import small_plan  # noqa: E402
 
 @pytest.fixture(scope="module")
 def cluster():
-    """Two single-threaded worker processes on the loopback interface, no dashboard."""
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as c:
-        yield c
+    """Two single-threaded worker processes on the loopback interface, no dashboard; a task that
+    takes its worker down is not tried again."""
+    import dask
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                      dashboard_address=None) as c:
+            yield c
 
 
 @pytest.fixture(scope="module")
@@ -114,3 +118,12 @@ bad = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed'
 assert not bad, bad
 """
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+def test_a_task_that_kills_its_workers_is_reported_not_fatal(cluster):
+    with distributed.Client(cluster) as client:
+        out = map_tasks(os._exit, [(3,)], client=client, on_lost=lambda i, msg: ("lost", i, msg))
+        with pytest.raises(distributed.KilledWorker):
+            map_tasks(os._exit, [(3,)], client=client)
+        client.wait_for_workers(2, timeout=60)
+    assert out[0][:2] == ("lost", 0) and "KilledWorker" in out[0][2]

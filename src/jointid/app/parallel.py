@@ -129,7 +129,8 @@ def _call(fn, args):
     return single_threaded(fn)(*args)
 
 
-def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=False, desc="tasks", on_result=None):
+def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=False, desc="tasks", on_result=None,
+              on_lost=None):
     """``[fn(*args) for args in arglist]``, in this process or on dask workers.
 
     Parameters
@@ -152,6 +153,10 @@ def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=Fals
         Label of the progress display.
     on_result : callable, optional
         ``on_result(index, result)`` as each call finishes (in the order they finish).
+    on_lost : callable, optional
+        ``on_lost(index, message)`` gives the result of a task that could not be completed on
+        the workers (it took ``ALLOWED_FAILURES`` workers down with it, or raised); without it
+        the run stops with that error.  ``on_result`` is not called for such a task.
 
     Returns
     -------
@@ -170,24 +175,31 @@ def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=Fals
                 bar.update()
             return results
         if client is not None:
-            _gather(client, fn, arglist, results, bar, on_result)
+            _gather(client, fn, arglist, results, bar, on_result, on_lost)
         else:
             with dask_client(min(resolve_jobs(jobs), len(arglist)), scheduler) as cl:
-                _gather(cl, fn, arglist, results, bar, on_result)
+                _gather(cl, fn, arglist, results, bar, on_result, on_lost)
         return results
     finally:
         bar.close()
 
 
-def _gather(client, fn, arglist, results, bar, on_result):
+def _gather(client, fn, arglist, results, bar, on_result, on_lost):
     from distributed import as_completed
 
     futures = [client.submit(_call, fn, args, pure=False) for args in arglist]
     index = {f.key: i for i, f in enumerate(futures)}
     for fut in as_completed(futures):
         i = index[fut.key]
-        results[i] = fut.result()
-        fut.release()
-        if on_result is not None:
-            on_result(i, results[i])
+        try:
+            results[i] = fut.result()
+        except Exception as exc:  # noqa: BLE001 - a lost task must not lose the others
+            if on_lost is None:
+                raise
+            results[i] = on_lost(i, f"{type(exc).__name__}: {exc}")
+        else:
+            if on_result is not None:
+                on_result(i, results[i])
+        finally:
+            fut.release()
         bar.update()

@@ -295,5 +295,9 @@ def process_all(specs, settings, to_modal) -> list:
 
     specs = list(specs)
     per_record = to_modal if isinstance(to_modal, (list, tuple)) else [to_modal] * len(specs)
+
+    def lost(i, message):  # a record that took its workers down fails alone
+        return RecordOutcome(specs[i], "failed", f"{_context(specs[i])}lost on the workers: {message}")
+
     return map_tasks(process_record, [(spec, settings, tm) for spec, tm in zip(specs, per_record)], jobs=settings.jobs,
-                     scheduler=settings.scheduler, progress=settings.progress, desc="records")
+                     scheduler=settings.scheduler, progress=settings.progress, desc="records", on_lost=lost)

@@ -761,11 +761,19 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
             os.fsync(fh.fileno())
             done[line["index"]] = line
 
-        map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
-                  progress=progress, desc="campaigns", on_result=append)
+        def lost(i, message):  # failed in this run, not written: a resumed study tries it again
+            index = todo[i]
+            return {"index": index, "seed": plan.campaign_seed(index), "plan": plan.fingerprint,
+                    "grid_point": index % len(plan.points), "drawn": None, "status": "failed",
+                    "error": f"campaign {index}: lost on the workers: {message}", "n_records": 0, "n_failed": 0,
+                    "rows": []}
+
+        new = map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
+                        progress=progress, desc="campaigns", on_result=append, on_lost=lost)
     lines = [done[i] for i in sorted(done)]
     atomic_write(path, "".join(json.dumps(line, allow_nan=False) + "\n" for line in lines))
-    current = tuple(done[i] for i in range(plan.n_campaigns))
+    lost_lines = {line["index"]: line for line in new if line["index"] not in done}
+    current = tuple(done.get(i) or lost_lines[i] for i in range(plan.n_campaigns))
     result = StudyResult(plan.name, plan, current, tuple(study_statistics(current)), n_run=len(todo))
     write_json(out / "study.json", result.summary())
     write_csv(out / "statistics.csv", list(result.statistics),

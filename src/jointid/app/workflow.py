@@ -98,6 +98,7 @@ class CampaignResult:
     model_errors: dict = field(default_factory=dict)
     channel_delay: object = None  # ChannelDelay applied to every record (jointid.identify.delay)
     channel_delay_error: str | None = None
+    broadband: tuple = ()  # BroadbandGroup per group of multisine / random records (jointid.app.broadband_records)
 
     @property
     def failed(self):
@@ -147,6 +148,7 @@ class CampaignResult:
             "structures": [{"preload": p, **s.summary()} for p, s in self.structures.items()],
             "channel_delay": (self.channel_delay.summary() if self.channel_delay is not None
                               else {"delay_s": None, "error": self.channel_delay_error}),
+            "broadband": [b.summary() for b in self.broadband],
         }
 
     def report(self) -> str:
@@ -278,7 +280,10 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
 
         to_modal, structures = _record_structures(campaign, Structure)
 
-    outcomes = flag_group_outliers(process_all(campaign.records, settings, to_modal))
+    from .broadband_records import identify_broadband, split_broadband
+
+    sine_specs, to_modal, broadband_specs = split_broadband(campaign.records, to_modal)
+    outcomes = flag_group_outliers(process_all(sine_specs, settings, to_modal))
     use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # records of the pooled fits
     from .channel_delay import correct_channel_delay
 
@@ -427,7 +432,8 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors,
         models=models, model_errors=model_errors,
     )
-    result = replace(result, structures=structures, channel_delay=delay, channel_delay_error=delay_error)
+    result = replace(result, structures=structures, channel_delay=delay, channel_delay_error=delay_error,
+                     broadband=identify_broadband(broadband_specs, settings))
     if settings.repredict:
         from .reprediction import loop_errors, repredict_campaign
 
