@@ -236,3 +236,21 @@ def test_example_plan_reads(tmp_path):
     assert plan.n_campaigns == 200 and len(plan.vary) == 7
     tables, drawn, _ = plan.draw(0)
     assert 2 <= len(tables["excitation"]["force_levels"]) <= 4
+
+
+def test_progress_in_a_log_is_plain_lines():
+    import io
+
+    from jointid.app.parallel import progress_bar
+
+    log = io.StringIO()
+    bar = progress_bar(20, "campaigns", file=log)
+    for _ in range(20):
+        bar.update()
+    bar.close()
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and 2 <= len(lines) <= 11
+    assert lines[-1].startswith("campaigns: 20/20 (100 %)")
+    quiet = io.StringIO()
+    progress_bar(5, "x", enabled=False, file=quiet).update()
+    assert quiet.getvalue() == ""
