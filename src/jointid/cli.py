@@ -65,7 +65,9 @@ def _add_parallel_options(p, what):
 
 def _add_identify_options(p):
     p.add_argument("--terms", default="q + -q^3 + q'",
-                   help="restoring-force terms, e.g. \"q + -q^3 + q'\" or eq22 (default: %(default)s)")
+                   help="restoring-force terms, e.g. \"q + -q^3 + q'\" or eq22, or auto: the model each preload's "
+                        "data select (candidate families ranked by cross-validation over the force levels and "
+                        "an information criterion; docs/method.md) (default: %(default)s)")
     p.add_argument("--harmonics", type=_int_in(1, 200), default=5,
                    help="harmonics fitted to the acceleration (default: %(default)s)")
     p.add_argument("--damping-order", type=_int_in(0, 10), default=2, help="order of c(q_max) (default: %(default)s)")
@@ -154,6 +156,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Welch segment length of H1 in samples (default: an eighth of the record)")
     p.add_argument("--min-coherence", type=_float_in(0.0, 1.0), default=0.8,
                    help="lowest median coherence of a trusted peak's band (default: %(default)s)")
+
+    p = sub.add_parser("backbone", help="draw omega(a), zeta(a) of a saved identification (results.json)",
+                       epilog="example: jointid backbone res/results.json --out backbone-out")
+    p.add_argument("results", type=Path, help="results.json written by jointid identify")
+    p.add_argument("--out", type=Path, required=True, help="folder for backbone_<preload>.png")
+    p.add_argument("--harmonics", type=_int_in(1, 50), default=1,
+                   help="harmonics of the model backbone (1: first-harmonic balance; default: %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no table on stdout")
 
     p = sub.add_parser("study", help="Monte Carlo study: simulated campaigns identified and compared with the truth",
                        epilog="example: jointid study plan.toml --out study --jobs 2  (plan format: jointid.app.study)")
@@ -322,8 +332,19 @@ def _example(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
+def _backbone(args) -> int:
+    from .app.backbones import backbones_from_results, write_backbone_figures
+
+    bb = backbones_from_results(args.results, n_harmonics=args.harmonics)
+    paths = write_backbone_figures(bb, args.out)
+    if not args.quiet:
+        print(bb.report())
+        print(f"\n{len(paths)} figure(s) written to {args.out}")
+    return EXIT_OK
+
+
 COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal,
-            "study": _study}
+            "study": _study, "backbone": _backbone}
 
 
 def main(argv=None) -> int:

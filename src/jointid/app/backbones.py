@@ -30,7 +30,7 @@ from ..identify.jointlaw import JointModes, fit_joint_laws
 from ..signal.ringdown import fit_decay
 
 __all__ = ["PreloadBackbones", "CampaignBackbones", "preload_model_backbone", "ringdown_decay",
-           "backbone_from_campaign", "campaign_backbones"]
+           "backbone_from_campaign", "campaign_backbones", "backbones_from_results", "write_backbone_figures"]
 
 
 def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, label="") -> Backbone:
@@ -291,3 +291,63 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
                     warnings.warn(f"preload {p}: joint laws not fitted ({exc})", JointidWarning, stacklevel=2)
         preloads.append(pb)
     return CampaignBackbones(tuple(preloads))
+
+
+def backbones_from_results(results, n_points=40, n_harmonics=1) -> CampaignBackbones:
+    """The backbones of a saved identification (``results.json`` path or its parsed dict).
+
+    Each preload's model (``models``) gives its backbone with bands; the measured points
+    and joint laws saved under ``backbones`` are drawn alongside (joint laws as their
+    parameter tables).
+    """
+    import json
+    from pathlib import Path
+
+    if not isinstance(results, dict):
+        path = Path(results)
+        try:
+            results = json.loads(path.read_text())
+        except FileNotFoundError:
+            from ..errors import RecordFileNotFoundError
+
+            raise RecordFileNotFoundError(f"{path}: no such results file") from None
+        except (OSError, ValueError) as exc:
+            raise RecordError(f"{path}: not a readable results.json ({exc})") from None
+    saved = {}
+    for entry in ((results.get("backbones") or {}).get("preloads") or []):
+        saved[entry.get("preload")] = entry
+    out = []
+    models = [m for m in results.get("models") or [] if m.get("parameters") is not None]
+    for p in dict.fromkeys([m.get("preload") for m in models] + list(saved)):
+        errors = {}
+        model_bb = None
+        m = next((m for m in models if m.get("preload") == p), None)
+        if m is not None:
+            try:
+                model_bb = preload_model_backbone(m, n_points=n_points, n_harmonics=n_harmonics, label=f"preload {p}")
+            except JointidError as exc:
+                errors["model"] = str(exc)
+        e = saved.get(p) or {}
+        pick = (lambda d: None if not d else Backbone.from_summary(d))
+        out.append(PreloadBackbones(p, model_bb, pick(e.get("stepped_sine")), pick(e.get("phase_resonance")),
+                                    tuple(Backbone.from_summary(d) for d in e.get("ringdown") or []), {}, errors))
+    if not out:
+        raise RecordError("the results hold no identified model and no backbone")
+    return CampaignBackbones(tuple(out))
+
+
+def write_backbone_figures(backbones: CampaignBackbones, out_dir) -> list:
+    """One PNG per preload (``backbone_<preload>.png``) in ``out_dir``; returns the paths."""
+    from pathlib import Path
+
+    from ..report.output import slug
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for p in backbones.preloads:
+        fig, _ = p.plot()
+        path = out / f"backbone_{slug(p.preload)}.png"
+        fig.savefig(path, dpi=120)
+        paths.append(path)
+    return paths

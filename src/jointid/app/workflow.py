@@ -96,6 +96,7 @@ class CampaignResult:
     structures: dict = field(default_factory=dict)  # preload -> Structure (physical campaigns; Table 4)
     models: dict = field(default_factory=dict)  # PreloadModel per preload (one regression over its records)
     model_errors: dict = field(default_factory=dict)
+    backbones: object = None  # CampaignBackbones (jointid.app.backbones): omega(a), zeta(a), joint laws
     channel_delay: object = None  # ChannelDelay applied to every record (jointid.identify.delay)
     channel_delay_error: str | None = None
     broadband: tuple = ()  # BroadbandGroup per group of multisine / random records (jointid.app.broadband_records)
@@ -144,6 +145,7 @@ class CampaignResult:
             "n_failed": len(self.failed),
             "flagged": [{"index": r.spec.index, "file": r.spec.file, "flags": [f.name for f in r.flags],
                          "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
+            "backbones": None if self.backbones is None else self.backbones.summary(),
             "reprediction": {"groups": [r.summary() for r in self.repredictions], "loops": list(self.loops)},
             "structures": [{"preload": p, **s.summary()} for p, s in self.structures.items()],
             "channel_delay": (self.channel_delay.summary() if self.channel_delay is not None
@@ -438,6 +440,8 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         from .reprediction import loop_errors, repredict_campaign
 
         result = replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
-    return result
+    from .backbones import campaign_backbones
+
+    return replace(result, backbones=campaign_backbones(result, campaign))
 
 

@@ -122,6 +122,17 @@ class Backbone:
         """95 % band of ``zeta``: shape ``(2, n)``."""
         return np.array([self.zeta - Z95 * self.zeta_stderr, self.zeta + Z95 * self.zeta_stderr])
 
+    @classmethod
+    def from_summary(cls, d) -> "Backbone":
+        """Rebuild a backbone from its :meth:`summary` (a ``results.json`` entry)."""
+        def arr(key):
+            return np.array([np.nan if v is None else v for v in d.get(key) or []], float)
+
+        a = arr("amplitude")
+        ase = arr("amplitude_stderr") if d.get("amplitude_stderr") else np.zeros_like(a)
+        return cls(a, arr("omega"), arr("zeta"), arr("omega_stderr"), arr("zeta_stderr"), d.get("source", ""),
+                   ase, d.get("label", ""), dict(d.get("meta") or {}))
+
     def select(self, mask) -> "Backbone":
         """The points where ``mask`` is true (meta lists of the same length are filtered too)."""
         m = np.asarray(mask, bool)
