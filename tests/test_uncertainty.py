@@ -280,3 +280,30 @@ def test_results_json_intervals(tmp_path):
     assert len(s["models"]) == 1 and s["models"][0]["preload"] == "example"
     text = res.report()
     assert "95 %" in text and "model" in text
+
+
+@pytest.mark.slow
+def test_unknown_gain_pooled_fit_calibrated():
+    """The pooled fit with an unknown force gain: z-scores of omega1, k3/m and each record's c/m of unit spread."""
+    from jointid.identify.gain import PooledGainForceStateMapping
+
+    model = seed_model(c_law=(0.5, 0.0, 0.0))
+    rng = np.random.default_rng(5)
+    frf = frequency_response(model, 1.0, np.linspace(160, 180, 9), n_harmonics=9, stability=False)
+    z = []
+    for _ in range(40):
+        sigs = []
+        for s in frf.states:
+            t, Q, a = synthesize_record(s, 2000.0, 20 * 2 * np.pi / s.omega, t0=rng.uniform(0, 1), noise=0.01, rng=rng)
+            sigs.append(steady_state_signals(t, Q / 3.0, a, frequency_hz=s.omega / (2 * np.pi), n_harmonics=5,
+                                             refine_frequency=False))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = PooledGainForceStateMapping().fit(sigs).result_
+        d = r.derived()
+        cm, cs = r.per_record("c")
+        z.append([(d["omega1"][0] - 170.0) / d["omega1"][1], (d["k3/m"][0] - 5e6) / d["k3/m"][1]]
+                 + list((cm - 0.5) / cs))
+    z = np.array(z)
+    for k, spread in enumerate(list(z[:, :2].std(axis=0)) + [z[:, 2:].std()]):
+        assert 0.75 < spread < 1.35, (k, spread)

@@ -60,6 +60,7 @@ from .broadband import delta_method
 from .fsm import COND_LIMIT, pooled_inputs, split_terms
 from .regression import pooled_lstsq, reduce_blocks
 from .terms import library
+from .uncertainty import record_scores, sandwich
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
 
@@ -408,6 +409,8 @@ class PooledGainForceStateMapping:
         reduced = [_reduced(lib, s) for s in sigs]
         Rs = [R for R, _ in reduced]
         res, weights = pooled_lstsq(reduced, shared_cols, own_cols, nt, weighting=self.weighting)
+        cov = _sandwich_covariance(lib, sigs, Rs, res.coefficients, weights, shared_cols, own_cols)
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         n_total = res.n_samples
         if not np.isfinite(res.condition_number) or res.condition_number > self.cond_limit:
             warn.append(f"{context}pooled regression too ill-conditioned (condition number "
@@ -434,10 +437,35 @@ class PooledGainForceStateMapping:
         self.lstsq_ = res
         self.coef_ = shared
         self.result_ = GainFit(
-            lib.names, names_shared, shared, res.stderr[:ns], tuple(lib[i].coefficient for i in own_lib),
-            res.coefficients[ns:].reshape(nr, no), res.stderr[ns:].reshape(nr, no), res.covariance,
+            lib.names, names_shared, shared, se[:ns], tuple(lib[i].coefficient for i in own_lib),
+            res.coefficients[ns:].reshape(nr, no), se[ns:].reshape(nr, no), cov,
             np.array([s.q_max() for s in sigs]), np.array([s.frequency_hz for s in sigs]), np.array(w1),
             res.condition_number, np.array(weights), n_total, tuple(warn),
         )
         return self
 
+
+
+def _sandwich_covariance(lib, sigs, Rs, coef, weights, shared_cols, own_cols):
+    """Covariance of the pooled gain fit under the noise model of :mod:`jointid.identify.uncertainty`.
+
+    The excitation noise enters ``V`` directly; the acceleration noise enters through the
+    harmonic fit, which moves the inertia column ``q''_fit`` and the states ``q, q'`` together.
+    """
+    ns, no, nr = len(shared_cols), len(own_cols), len(sigs)
+    P = ns + no * nr
+    nt = len(lib) + 1
+    A, meat = np.zeros((P, P)), np.zeros((P, P))
+    for r, (sig, R, w) in enumerate(zip(sigs, Rs, weights)):
+        cols = np.full(nt, -1)
+        cols[shared_cols] = np.arange(ns)
+        cols[own_cols] = ns + r * no + np.arange(no)
+        theta = coef[cols]
+        sc = record_scores(lib, sig, inertia=True)
+        M = R[:, :nt].T @ R[:, :nt]
+        V = sc.covariance(theta)
+        used = cols >= 0
+        idx = np.ix_(cols[used], cols[used])
+        A[idx] += w**2 * M[np.ix_(used, used)]
+        meat[idx] += w**4 * V[np.ix_(used, used)]
+    return sandwich(A, meat)

@@ -147,6 +147,7 @@ class RecordScores:
     n_samples: int
     filtered: bool = True
     force_coefficients: np.ndarray | None = field(default=None, repr=False)  # harmonic fit of the force
+    inertia: bool = False  # column 0 is the filtered acceleration with coefficient m (unknown force gain)
 
     def score_terms(self, theta, dtheta_dqmax=None) -> np.ndarray:
         """``X^T D`` (``(p, m)``) in the record's term columns for coefficients ``theta``.
@@ -155,7 +156,9 @@ class RecordScores:
         """
         theta = np.asarray(theta, float)
         S = np.tensordot(theta, self.phi_dq_b, axes=1) @ self.Tq + np.tensordot(theta, self.phi_dv_b, axes=1) @ self.Tv
-        if self.filtered:
+        if self.inertia:  # residual V - m q''_fit - h: the acceleration coefficients enter with m
+            S = S + theta[0] * self.phi_b
+        elif self.filtered:
             S = S + self.phi_b
         if dtheta_dqmax is not None:
             S = S + np.outer(self.gram @ np.asarray(dtheta_dqmax, float), self.peak)
@@ -183,7 +186,7 @@ class RecordScores:
 
 
 
-def record_scores(lib, signals: StateSignals, filtered=True) -> RecordScores:
+def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> RecordScores:
     """One streamed pass over a record: the noise-model sums of :class:`RecordScores`.
 
     Parameters
@@ -192,10 +195,14 @@ def record_scores(lib, signals: StateSignals, filtered=True) -> RecordScores:
     signals : StateSignals
     filtered : bool
         As in :class:`~jointid.identify.fsm.ForceStateMapping`.
+    inertia : bool
+        The regression has the filtered acceleration as its first column (unknown force
+        gain, :mod:`jointid.identify.gain`: ``m q'' + h(q, q') = V``).
     """
     acc = signals.acceleration
     H, omega = acc.n_harmonics, signals.omega
-    m, p = n_coefficients(H), len(lib)
+    off = 1 if inertia else 0
+    m, p = n_coefficients(H), len(lib) + off
     gram = np.zeros((p, p))
     phi_b = np.zeros((p, m))
     dq_b = np.zeros((p, p, m))
@@ -203,16 +210,16 @@ def record_scores(lib, signals: StateSignals, filtered=True) -> RecordScores:
     G = np.zeros((m, m))
     bF = np.zeros(m)
     FF = 0.0
-    for sl, q, v, _ in signals.blocks():
+    for sl, q, v, a_fit in signals.blocks():
         B = _basis(signals.t[sl] - acc.t0, omega, H)
-        Phi = lib.evaluate(q, v)
+        Phi = np.column_stack([a_fit, lib.evaluate(q, v)]) if inertia else lib.evaluate(q, v)
         Q = np.array(signals.force[sl])  # a fresh (aligned) copy: sums independent of the input's memory layout
         gram += Phi.T @ Phi
         phi_b += Phi.T @ B
         for k, t in enumerate(lib):
             gq, gv = t.derivatives(q, v)
-            dq_b[k] += (Phi * gq[:, None]).T @ B
-            dv_b[k] += (Phi * gv[:, None]).T @ B
+            dq_b[off + k] += (Phi * gq[:, None]).T @ B
+            dv_b[off + k] += (Phi * gv[:, None]).T @ B
         G += B.T @ B
         bF += B.T @ Q
         FF += float(Q @ Q)
@@ -227,8 +234,8 @@ def record_scores(lib, signals: StateSignals, filtered=True) -> RecordScores:
     Tq = Tv @ Tv
     return RecordScores(
         gram, phi_b, dq_b, dv_b, G, Tq, Tv, _peak_direction(signals.displacement.coefficients, Tq),
-        float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n), bool(filtered),
-        coef_F,
+        float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n),
+        bool(filtered or inertia), coef_F, bool(inertia),
     )
 
 
