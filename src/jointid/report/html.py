@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..io.results import atomic_write
+from .formatting import format_value
 
-__all__ = ["Section", "render_html", "write_html", "figure_to_data_uri", "figure_to_png"]
+__all__ = ["Section", "render_html", "write_html", "figure_to_data_uri", "figure_to_png", "page_meta"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;max-width:1100px;color:#222;
@@ -30,6 +31,8 @@ figure{display:inline-block;margin:.5em 1em .5em 0;vertical-align:top}
 figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.85em;color:#555;max-width:520px}
 .note{color:#555;font-size:.9em}
+.meta{color:#555;font-size:.85em;margin-top:-.6em}
+caption{text-align:left;font-weight:600;padding:.2em 0}
 nav a{margin-right:1em}
 """
 
@@ -58,14 +61,8 @@ def figure_to_data_uri(fig, dpi=110) -> str:
 
 
 def _cell(v) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, (bool, np.bool_)):
-        return "yes" if v else "no"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return "nan" if not np.isfinite(v) else f"{float(v):.6g}"
+    if isinstance(v, (bool, np.bool_, int, np.integer, float, np.floating)) or v is None:
+        return html.escape(format_value(v))
     return html.escape(str(v))
 
 
@@ -86,12 +83,26 @@ def _table(caption, rows, columns=None) -> str:
             f"<tbody>{''.join(body)}</tbody></table>")
 
 
-def render_html(title: str, sections, intro: str = "") -> str:
-    """The whole page as a string."""
+def page_meta(run_id=None) -> dict:
+    """Version of jointid, the UTC date and time, and the run id shown at the top of a report."""
+    import time
+
+    from .. import __version__
+
+    meta = {"jointid": __version__, "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+    if run_id:
+        meta["run id"] = str(run_id)
+    return meta
+
+
+def render_html(title: str, sections, intro: str = "", meta=None) -> str:
+    """The whole page as a string; ``meta`` (default :func:`page_meta`) is shown under the title."""
+    meta = page_meta() if meta is None else meta
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
+        "<p class='meta'>" + " · ".join(f"{html.escape(k)} {html.escape(str(v))}" for k, v in meta.items()) + "</p>",
     ]
     if intro:
         parts.append(f"<p>{html.escape(intro)}</p>")
@@ -108,6 +119,6 @@ def render_html(title: str, sections, intro: str = "") -> str:
     return "\n".join(parts)
 
 
-def write_html(path, title, sections, intro="") -> None:
+def write_html(path, title, sections, intro="", meta=None) -> None:
     """Render and write the page atomically."""
-    atomic_write(path, render_html(title, sections, intro))
+    atomic_write(path, render_html(title, sections, intro, meta))

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .formatting import label_with_unit
+
 __all__ = [
     "new_axes",
     "plot_per_record",
@@ -35,8 +37,8 @@ def plot_per_record(pooled, name="c", ax=None, label=None, marker="o"):
     y = pooled.get(name)
     err = pooled.get_stderr(name)
     ax.errorbar(pooled.q_max, y, yerr=err, fmt=marker, ms=4, capsize=2, label=label)
-    ax.set_xlabel("q_max")
-    ax.set_ylabel(name)
+    ax.set_xlabel(label_with_unit("q_max"))
+    ax.set_ylabel(label_with_unit(name))
     ax.grid(True, alpha=0.3)
     return ax
 
@@ -48,9 +50,9 @@ def plot_damping_law(law, ax=None, label=None, color=None):
     err = law.c_stderr if np.all(np.isfinite(law.c_stderr)) else None
     pts = ax.errorbar(q, law.c, yerr=err, fmt="o", ms=4, capsize=2, color=color, label=f"{label or 'identified'}")
     qq = np.linspace(0, q.max() * 1.05, 200)
-    ax.plot(qq, law(qq), "-", color=pts[0].get_color(), label=f"fitted order {law.order}")
-    ax.set_xlabel("q_max")
-    ax.set_ylabel("c(q_max)")
+    ax.plot(qq, law(qq), "-", color=pts[0].get_color(), label=f"c(q_max), polynomial of order {law.order}")
+    ax.set_xlabel("q_max [m]")
+    ax.set_ylabel("c(q_max) [N s/m]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return ax
@@ -62,8 +64,8 @@ def plot_power_law(law, ax=None, label=None):
     pts = ax.loglog(law.force, law.energy, "o", ms=4, label=label or "records")
     FF = np.geomspace(law.force.min(), law.force.max(), 50)
     ax.loglog(FF, law(FF), "-", color=pts[0].get_color(), label=f"U = {law.alpha:.3g} F^{law.n:.3f}")
-    ax.set_xlabel("joint force amplitude F (modal)")
-    ax.set_ylabel("energy per cycle U")
+    ax.set_xlabel("joint force amplitude F [N] (modal)")
+    ax.set_ylabel("energy per cycle U [J]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     return ax
@@ -78,9 +80,12 @@ def plot_hysteresis(loop, ax=None, label=None, show_identified=True):
     ax.plot(q, m, "-", lw=1.2, label=label or f"measured ({kind}) {loop.frequency_hz:.4g} Hz")
     if show_identified:
         i = np.append(loop.identified, loop.identified[:1])
-        ax.plot(q, i, "--", lw=1.2, color="k", label="identified")
-    ax.set_xlabel("q")
-    ax.set_ylabel("Q - q'' - omega1^2 q")
+        err = getattr(loop, "rms_difference", None)
+        ax.plot(q, i, "--", lw=1.2, color="k",
+                label="identified" + (f" (rms difference {100 * err:.1f} %)" if err is not None and np.isfinite(err)
+                                      else ""))
+    ax.set_xlabel("q [m] (modal)")
+    ax.set_ylabel("Q - q'' - omega1² q [N] (modal)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
     return ax
@@ -96,8 +101,8 @@ def plot_parameters_vs_frequency(frequency_hz, values: dict, exact: dict | None 
         ax.plot(frequency_hz, values[n], "o", ms=3, label="identified")
         if exact and n in exact and exact[n] is not None:
             ax.axhline(exact[n], color="k", lw=0.8, ls="--", label="exact")
-        ax.set_ylabel(n)
+        ax.set_ylabel(n if "[" in n else label_with_unit(n))
         ax.grid(True, alpha=0.3)
-    axes[-1].set_xlabel("excitation frequency [Hz]")
+        ax.set_xlabel("excitation frequency [Hz]")
     axes[0].legend(fontsize=8)
     return axes

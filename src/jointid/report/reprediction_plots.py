@@ -49,7 +49,9 @@ def plot_reprediction(repredictions, ax=None, *, title=None, show_exact=True):
         if show_exact and r.exact is not None:
             ax.plot(r.exact.frequency_hz, np.abs(r.exact.H), ":", lw=0.9, color="0.35")
     ax.set_xlabel("excitation frequency [Hz]")
-    ax.set_ylabel(repredictions[0].quantity if repredictions else "|response / force|")
+    quantity = repredictions[0].quantity if repredictions else "|response / force|"
+    unit = "[m/(s² N)]" if "force" in quantity and "acceleration" in quantity else "[response unit / excitation unit]"
+    ax.set_ylabel(quantity if "[" in quantity else f"{quantity} {unit}")
     if title:
         ax.set_title(title)
     ax.grid(True, alpha=0.3)

@@ -30,7 +30,7 @@ def _marker(force_level, i):
     return m
 
 
-def plot_joint_law(law, amplitudes, ax=None, n=512, label_unit="rad"):
+def plot_joint_law(law, amplitudes, ax=None, n=512, label_unit="rad", force_unit="N m"):
     """Steady hysteresis loops of a joint law at several amplitudes, with its backbone."""
     ax = new_axes(ax)
     tau = 2 * np.pi * np.arange(n) / n
@@ -43,13 +43,13 @@ def plot_joint_law(law, amplitudes, ax=None, n=512, label_unit="rad"):
         ax.plot(uu, law.iwan.backbone(uu) - law.k3 * uu**3, "k--", lw=0.8, label="virgin loading (closed form)")
         ax.plot(uu, law.linear_stiffness * uu, ":", color="0.5", lw=0.8, label="K_T u")
     ax.set_xlabel(f"relative motion u [{label_unit}]")
-    ax.set_ylabel("joint force (moment)")
+    ax.set_ylabel(f"joint force (moment) [{force_unit}]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
     return ax
 
 
-def plot_joint_dissipation(law, force_range, ax=None, n_points=12, label=None):
+def plot_joint_dissipation(law, force_range, ax=None, n_points=12, label=None, force_unit="N m"):
     """Energy dissipated per cycle against force amplitude: discrete Iwan (points) and
     Segalman's closed forms (lines), log-log, with the slope ``3 + chi``."""
     ax = new_axes(ax)
@@ -65,8 +65,8 @@ def plot_joint_dissipation(law, force_range, ax=None, n_points=12, label=None):
               label="closed form D(u0(F))")
     ax.loglog(FF, p.microslip_dissipation(FF), "k--", lw=0.8,
               label=f"micro-slip asymptote ~ F^{p.dissipation_exponent:.2f}")
-    ax.set_xlabel("force amplitude F")
-    ax.set_ylabel("energy dissipated per cycle D")
+    ax.set_xlabel(f"force (moment) amplitude F [{force_unit}]")
+    ax.set_ylabel("energy dissipated per cycle D [J]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     return ax
@@ -134,16 +134,17 @@ def plot_record(t, force, accel, accel_fit, velocity, displacement, axes=None, t
         axes = np.atleast_1d(new_axes(None, figsize=(7.0, 6.5), nrows=4))
     sel = slice(None) if periods is None else t < t[0] + periods
     axes[0].plot(t[sel], force[sel], lw=0.9)
-    axes[0].set_ylabel("Q (modal force)")
+    axes[0].set_ylabel("Q [N] (modal)")
     axes[1].plot(t[sel], accel[sel], lw=0.7, color="0.6", label="measured")
-    axes[1].plot(t[sel], accel_fit[sel], lw=1.0, label="fitted (n harmonics)")
-    axes[1].set_ylabel("q''")
+    axes[1].plot(t[sel], accel_fit[sel], lw=1.0, label="fitted harmonic series")
+    axes[1].set_ylabel("q'' [m/s²]")
     axes[1].legend(fontsize=7)
     axes[2].plot(t[sel], velocity[sel], lw=1.0)
-    axes[2].set_ylabel("q'")
+    axes[2].set_ylabel("q' [m/s]")
     axes[3].plot(t[sel], displacement[sel], lw=1.0)
-    axes[3].set_ylabel("q")
-    axes[3].set_xlabel("time [s]")
+    axes[3].set_ylabel("q [m]")
+    for ax in axes:
+        ax.set_xlabel("time [s]")
     for ax in axes:
         ax.grid(True, alpha=0.3)
     if title:
