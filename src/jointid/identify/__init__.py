@@ -2,6 +2,8 @@
 
 * :mod:`jointid.identify.terms` -- named restoring-force terms and libraries;
 * :mod:`jointid.identify.fsm` -- per-record and pooled force-state mapping (seed Eq 21-23);
+* :mod:`jointid.identify.model` -- one model per preload, amplitude laws inside the regression;
+* :mod:`jointid.identify.uncertainty` -- the noise model: score and sandwich covariances;
 * :mod:`jointid.identify.gain` -- the pooled regression with an unknown force gain;
 * :mod:`jointid.identify.broadband` -- force-state mapping of broadband records;
 * :mod:`jointid.identify.laws` -- damping law, energy per cycle, power law (Eq 25-26);
@@ -13,7 +15,8 @@ from .fsm import ForceStateMapping, PooledForceStateMapping, band_average
 from .gain import PooledGainForceStateMapping
 from .hysteresis import hysteresis_loop
 from .laws import fit_damping_law, fit_power_law
+from .model import PreloadForceStateMapping, PreloadModel
 from .terms import Term, TermLibrary, library, term
 
 __all__ = ["ForceStateMapping", "PooledForceStateMapping", "PooledGainForceStateMapping", "band_average",
-           "hysteresis_loop", "fit_damping_law", "fit_power_law", "Term", "TermLibrary", "library", "term"]
+           "PreloadForceStateMapping", "PreloadModel", "hysteresis_loop", "fit_damping_law", "fit_power_law", "Term", "TermLibrary", "library", "term"]
