@@ -124,6 +124,15 @@ def campaign_report(result) -> str:
     for g in result.groups:
         txt = g.power_law.report() if g.power_law else (g.power_law_error or "-")
         out.append(f"  preload {g.preload}, F {g.force_level}: {txt}")
+    delay = getattr(result, "channel_delay", None)
+    if delay is not None:
+        out.append("")
+        out.append(f"Records corrected by the {delay.report()}")
+    broadband = getattr(result, "broadband", ())
+    if broadband:
+        out.append("")
+        out.append("Broadband records (broadband force-state mapping; free-run simulation of held-out records):")
+        out += ["  " + line for b in broadband for line in b.report().splitlines()]
     reps = getattr(result, "repredictions", ())
     if reps:
         out.append("")
