@@ -273,11 +273,17 @@ def _identify(args) -> int:
         channel_delay=_channel_delay(args.channel_delay), repredict=not args.no_reprediction,
     )
     write_results(result, args.out, figures=not args.no_figures)
+    from .report.output import flagged_lines
+    from .report.summary import console_lines, error_lines
+
+    summary = result.summary()
     if not args.quiet:
         print(result.report())
+        print("\n" + "\n".join(console_lines(summary)))
         print(f"\nresults written to {args.out}")
-    from .report.output import flagged_lines
-
+    else:  # --quiet never hides failures: one line per kind of error, with a count
+        for line in error_lines(summary):
+            print(f"failed: {line}", file=sys.stderr)
     for line in flagged_lines(result):  # also when quiet: a flagged record needs a look
         print(line, file=sys.stderr)
     return EXIT_PARTIAL if result.failed or result.flagged else EXIT_OK

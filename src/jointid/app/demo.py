@@ -480,7 +480,7 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     -------
     DemoResult
     """
-    from tqdm.auto import tqdm
+    from .parallel import progress_bar
 
     t_start = time.perf_counter()
     settings = settings or DemoSettings()
@@ -489,10 +489,11 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     timings = {}
     rngs = np.random.default_rng(seed).spawn(len(settings.preloads))
     n_steps = len(settings.preloads) * (2 + len(settings.plan.force_levels)) + 2
-    bar = tqdm(total=n_steps, desc="jointid demo", unit="step", disable=not progress, leave=True)
+    bar = progress_bar(n_steps, "jointid demo", enabled=progress)  # plain lines when stderr is no terminal
 
     def tick(text):
-        bar.set_postfix_str(text, refresh=False)
+        if hasattr(bar, "set_postfix_str"):
+            bar.set_postfix_str(text, refresh=False)
         bar.update(1)
 
     results = []

@@ -139,14 +139,14 @@ def simulate_steady_states(cfg: SimulationConfig, progress=False):
 
     out = []
     jobs = [(p, m, F) for p, m in cfg.models for F in cfg.force_levels]
-    it = jobs
-    if progress:
-        from tqdm.auto import tqdm
+    from .parallel import progress_bar
 
-        it = tqdm(jobs, desc="steady states", unit="sweep")
-    for preload, model, F in it:
+    bar = progress_bar(len(jobs), "steady states", enabled=progress)  # plain lines when stderr is no terminal
+    for preload, model, F in jobs:
         frf = frequency_response(model, F, cfg.omegas, n_harmonics=cfg.n_harmonics, stability=False)
         out.append((preload, F, frf))
+        bar.update(1)
+    bar.close()
     return out
 
 

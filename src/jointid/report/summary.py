@@ -17,7 +17,7 @@ import numpy as np
 from .formatting import format_ci, format_pm, format_value, unit_of
 
 __all__ = ["model_rows", "table5_rows", "band_resolution", "adequacy_rows", "message_kind", "group_messages",
-           "warning_rows", "error_lines", "summary_lines", "Z95"]
+           "warning_rows", "error_lines", "summary_lines", "console_lines", "Z95"]
 
 Z95 = 1.959963984540054
 
@@ -223,4 +223,27 @@ def summary_lines(summary) -> list:
     if errs:
         out.append(f"Failed records ({sum(1 for r in summary.get('records') or [] if r.get('status') != 'ok')}):")
         out += ["  " + e for e in errs]
+    return out
+
+
+def console_lines(summary) -> list:
+    """What the console adds below the text report: the band averages (the paper's Table 5
+    numbers) with their resolution, the warnings per group with counts, the failed records
+    grouped by kind of error."""
+    out = []
+    bands = [(g, band_resolution(summary, g)) for g in summary.get("groups") or [] if g.get("k3_mean") is not None]
+    bands = [(g, b) for g, b in bands if b]
+    if bands:
+        out.append("* k3 band avg: the paper's Table 5 number, the mean of single-record fits (standard error from "
+                   "their scatter); the pooled k3 is the estimate to use:")
+        for g, b in bands:
+            out.append(f"  preload {g.get('preload')}, F {format_value(g.get('force_level'))}: band average "
+                       f"{format_pm(b['mean'], b['stderr'])} N/m³" + (f"  <- {b['note']}" if b["note"] else ""))
+    w = warning_rows(summary)
+    if w:
+        out.append("Warnings per group (every message is in results.json):")
+        out += [f"  preload {r['preload']}, F {r['F']}: {r['records']} x {r['warning']}" for r in w]
+    out += [f"Failed: {e}" for e in error_lines(summary)]
+    for m in summary.get("models") or []:
+        out += [f"preload {m.get('preload')} model: {w_}" for w_ in m.get("warnings") or []]
     return out
