@@ -20,10 +20,11 @@ models of one preload (terms plus amplitude laws, as fitted by
   noise) and its steady-state amplitudes, solved by harmonic balance at the held-out
   records' frequencies and forcing (:func:`~jointid.simulate.hbm.frequency_response`).
 
-The model picked is the simplest one within noise of the best: among the candidates whose
-criterion is within ``delta`` (2) of the lowest, those whose cross-validated restoring-force
-score is within one standard error of the best of them; of these the one with the fewest
-parameters.  With many candidate terms, :func:`forward_selection` grows the model
+The model picked is the simplest one within noise of the best: a candidate with a nonlinear
+parameter less than three standard errors from zero is not considered (its term is not
+resolved by the data); of the others, those whose criterion is within ``delta`` (2) of the
+lowest are kept, of these those whose cross-validated restoring-force score is within one
+standard error of the best, and of these the one with the fewest parameters wins.  With many candidate terms, :func:`forward_selection` grows the model
 one term or law order at a time while the criterion drops by more than ``delta``.
 """
 
@@ -467,8 +468,8 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
     bic = chi2 + P * math.log(max(space.nu, 2.0))
     cov = space.covariance(cols, orders, theta, A, all_idx)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    unresolved = tuple(n for n, v, s, t in zip(names, theta, se, _param_terms(lib, orders))
-                       if t.name not in ("q", "q'") and not (abs(v) > RESOLVED_T * s))
+    unresolved = tuple(n for n, v, s, (t, j) in zip(names, theta, se, _param_terms(lib, orders))
+                       if (t.name not in ("q", "q'") or (t.name == "q" and j > 0)) and not (abs(v) > RESOLVED_T * s))
     kw = dict(parameter_names=names, parameters=theta, stderr=se, chi2=chi2, dof=space.nu - P, aic=aic, bic=bic,
               unresolved=unresolved, condition_number=float(cond))
     if criterion_only or len(level_values) < 2:
@@ -500,19 +501,23 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
 
 
 def _param_terms(lib, orders):
-    return [t for t, L in zip(lib, orders) for _ in range(L + 1)]
+    """``(term, power of q_max)`` of every parameter."""
+    return [(t, j) for t, L in zip(lib, orders) for j in range(L + 1)]
 
 
 def _pick(scores, criterion, delta):
     """The simplest model within noise of the best (see the module notes).
 
-    Among the models whose criterion is within ``delta`` of the lowest, those whose
+    Models with a nonlinear parameter the data do not resolve (less than ``RESOLVED_T``
+    standard errors from zero) are left out when any model is fully resolved.  Among the
+    models whose criterion is within ``delta`` of the lowest, those whose
     cross-validated restoring-force score is within one standard error of the best score
     among them are kept; the one with the fewest parameters (then the lowest criterion) wins.
     """
     ok = [s for s in scores if s.error is None and np.isfinite(getattr(s, criterion))]
     if not ok:
         raise IdentificationError("no candidate model could be fitted")
+    ok = [s for s in ok if not s.unresolved] or ok  # a term the data do not resolve is not within noise
     ic0 = min(getattr(s, criterion) for s in ok)
     near = [s for s in ok if getattr(s, criterion) <= ic0 + delta]
     cv = [s for s in near if np.isfinite(s.cv_force)]
