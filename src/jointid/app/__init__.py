@@ -2,6 +2,9 @@
 
 * :mod:`~jointid.app.records` -- one record through the chain, and all records of a campaign;
 * :mod:`~jointid.app.workflow` -- a campaign identified: groups, damping and power laws;
+* :mod:`~jointid.app.reprediction` -- each group's measured FRF re-predicted by harmonic balance, loop errors;
+* :mod:`~jointid.app.channel_delay` -- the channel-delay step of an identification;
+* :mod:`~jointid.app.broadband_records` -- multisine and random records of a campaign;
 * :mod:`~jointid.app.synthesis` -- simulated campaigns from a TOML configuration;
 * :mod:`~jointid.app.paper_example` -- the seed paper's numerical example (Section 4);
 * :mod:`~jointid.app.demo` -- the seed's experiment on the virtual rig;

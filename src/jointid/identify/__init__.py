@@ -8,9 +8,11 @@
 * :mod:`jointid.identify.broadband` -- force-state mapping of broadband records;
 * :mod:`jointid.identify.laws` -- damping law, energy per cycle, power law (Eq 25-26);
 * :mod:`jointid.identify.hysteresis` -- measured and identified loops (Figs 17-19);
+* :mod:`jointid.identify.delay` -- the response channel's delay behind the excitation, from the dwells;
 * :mod:`jointid.identify.regression` -- the scaled, blockwise least squares underneath.
 """
 
+from .delay import ChannelDelay, ChannelDelayEstimator
 from .fsm import ForceStateMapping, PooledForceStateMapping, band_average
 from .gain import PooledGainForceStateMapping
 from .hysteresis import hysteresis_loop
@@ -18,5 +20,5 @@ from .laws import fit_damping_law, fit_power_law
 from .model import PreloadForceStateMapping, PreloadModel
 from .terms import Term, TermLibrary, library, term
 
-__all__ = ["ForceStateMapping", "PooledForceStateMapping", "PooledGainForceStateMapping", "band_average",
+__all__ = ["ChannelDelay", "ChannelDelayEstimator", "ForceStateMapping", "PooledForceStateMapping", "PooledGainForceStateMapping", "band_average",
            "PreloadForceStateMapping", "PreloadModel", "hysteresis_loop", "fit_damping_law", "fit_power_law", "Term", "TermLibrary", "library", "term"]
