@@ -8,7 +8,6 @@ records still finish.
 
 from __future__ import annotations
 
-import html
 import warnings
 from dataclasses import dataclass, field, replace
 
@@ -75,6 +74,17 @@ class GroupResult:
                 band_average=self.band,
             )
         return d
+
+    def __repr__(self):
+        k3 = f", k3={self.pooled.k3:.4g}" if self.pooled is not None and self.pooled.k3 is not None else ""
+        w1 = f", omega1={self.pooled.omega1:.6g} rad/s" if self.pooled is not None else ""
+        return f"GroupResult(preload={self.preload!r}, force_level={self.force_level!r}: " \
+               f"{len(self.record_indices)} records{w1}{k3})"
+
+    def _repr_html_(self):
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
 
 @dataclass(frozen=True)
@@ -159,7 +169,9 @@ class CampaignResult:
         return campaign_report(self)
 
     def _repr_html_(self):
-        return "<pre>" + html.escape(self.report()) + "</pre>"
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
 def _gain_free(gain, terms) -> PooledFit:
     """A :class:`PooledFit` of the gain-free coefficients (``theta / m``) of a gain fit."""
@@ -168,6 +180,11 @@ def _gain_free(gain, terms) -> PooledFit:
     vals, errs = [], []
     for n in names:
         if n == "omega1^2":
+    def __repr__(self):
+        preloads = ", ".join(str(p) for p in self.damping_laws)
+        return (f"CampaignResult({self.name!r}: {len(self.records)} records, {len(self.failed)} failed, "
+                f"{len(self.flagged)} flagged, {len(self.groups)} groups, preloads [{preloads}])")
+
             w, sw = d["omega1"]
             vals.append(w**2)
             errs.append(2 * w * sw)
@@ -268,6 +285,25 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     settings : IdentifySettings, optional
     **kw
         Overrides of :class:`IdentifySettings` fields (``terms=...``, ``n_harmonics=...``).
+def summary_warning(notes, n_records, stacklevel=2):
+    """One warning for a whole campaign: the kinds of message with their counts and one example
+    each (every message stays on its record and in ``results.json``).  Its category is the
+    messages' common category, or :class:`JointidWarning` when they differ."""
+    if not notes:
+        return
+    from ..report.summary import group_messages
+
+    cats = {c for _, c in notes}
+    category = cats.pop() if len(cats) == 1 else JointidWarning
+    kinds = group_messages(t for t, _ in notes)
+    lines = [example if n == 1 else f"{n} x {kind} (e.g. {example})" for kind, n, example in kinds[:12]]
+    if len(kinds) > 12:
+        lines.append(f"... and {len(kinds) - 12} more kinds")
+    warnings.warn(f"{len(notes)} warnings over {n_records} records (each kept on its record: "
+                  f"result.records[i].warnings, results.json):\n  " + "\n  ".join(lines), category,
+                  stacklevel=stacklevel + 1)
+
+
     """
     if settings is None:
         settings = IdentifySettings(**kw)
@@ -293,20 +329,12 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     if delay_error:
         warnings.warn(f"channel delay not estimated: {delay_error}", JointidWarning, stacklevel=3)
     use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # after the correction
-    for o in outcomes:
-        for w, category in zip(o.warnings, o.warning_types):
-            warnings.warn(w, category, stacklevel=3)  # 3: past the single-threaded wrapper
-    failed = [o for o in outcomes if not o.ok]
-    if failed:
-        listing = "\n  ".join(o.error for o in failed[:10]) + ("\n  ..." if len(failed) > 10 else "")
-        warnings.warn(f"{len(failed)} of {len(outcomes)} records failed:\n  {listing}", JointidWarning, stacklevel=3)
-    flagged = [o for o in outcomes if o.ok and o.flags]
-    if flagged:
-        listing = "\n  ".join(f"{o.spec.file} [record {o.spec.index}]: " + "; ".join(f.report() for f in o.flags)
-                              for o in flagged[:10]) + ("\n  ..." if len(flagged) > 10 else "")
-        kept = "kept in" if settings.keep_flagged else "left out of"
-        warnings.warn(f"{len(flagged)} of {len(outcomes)} records flagged ({kept} the pooled fits):\n  {listing}",
-                      JointidWarning, stacklevel=3)
+    # every message is kept on its record (results.json); the call ends with one summary warning
+    notes = [(w, category) for o in outcomes for w, category in zip(o.warnings, o.warning_types)]
+    notes += [(f"record failed: {o.error}", JointidWarning) for o in outcomes if not o.ok]
+    kept = "kept in" if settings.keep_flagged else "left out of"
+    notes += [(f"{o.spec.file} [record {o.spec.index}]: flagged ({kept} the pooled fits): "
+               + "; ".join(f.report() for f in o.flags), JointidWarning) for o in outcomes if o.ok and o.flags]
 
     # groups: pooled regression and band average
     keys = sorted({o.spec.group for o in outcomes}, key=lambda k: (_group_key(k[0]), _group_key(k[1])))
@@ -328,8 +356,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                     gain = PooledGainForceStateMapping(settings.terms, weighting=settings.weighting).fit(
                         sigs, context=ctx).result_
                     pooled = _gain_free(gain, settings.terms)
-            for w in pooled.warnings:  # resolution and conditioning of the pooled regression
-                warnings.warn(w, IllConditionedWarning, stacklevel=3)
+            notes += [(w, IllConditionedWarning) for w in pooled.warnings]  # resolution and conditioning
             if gain is None:
                 band = band_average([outcomes[i].fit for i in members])
             else:
@@ -381,8 +408,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                     preload=preload,
                 ).fit([outcomes[i].signals for i in idx], fits=[outcomes[i].fit for i in idx],
                       context=f"preload {preload}: ").result_
-            for w in models[preload].warnings:
-                warnings.warn(w, IllConditionedWarning, stacklevel=3)
+            notes += [(w, IllConditionedWarning) for w in models[preload].warnings]
         except IdentificationError as exc:
             models[preload] = None
             model_errors[preload] = f"preload {preload}: {exc}"
@@ -443,5 +469,4 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     from .backbones import campaign_backbones
 
     return replace(result, backbones=campaign_backbones(result, campaign))
-
-
+    summary_warning(notes, len(outcomes), stacklevel=3)  # 3: past the single-threaded wrapper

@@ -17,7 +17,6 @@ Both follow the scikit-learn convention: parameters in ``__init__``, ``fit`` ret
 
 from __future__ import annotations
 
-import html
 import warnings
 from dataclasses import dataclass, field, replace
 
@@ -196,8 +195,15 @@ class RecordFit:
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
+    def __repr__(self):
+        coef = ", ".join(f"{n}={v:.4g}" for n, v in zip(self.coefficient_names, self.coefficients))
+        return (f"RecordFit({self.frequency_hz:.6g} Hz, q_max={self.q_max:.4g}: {coef}; "
+                f"{len(self.warnings)} warnings)")
+
     def _repr_html_(self):
-        return "<pre>" + html.escape(self.report()) + "</pre>"
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
 
 def _check_terms(lib: TermLibrary, n_harmonics: int):
@@ -447,8 +453,15 @@ class PooledFit:
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
+    def __repr__(self):
+        shared = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.shared_names, self.shared))
+        return (f"PooledFit({len(self.q_max)} records: {shared}; per record: {', '.join(self.own_names)}; "
+                f"{len(self.warnings)} warnings)")
+
     def _repr_html_(self):
-        return "<pre>" + html.escape(self.report()) + "</pre>"
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
     def plot(self, ax=None, name="c"):
         """Per-record coefficient ``name`` against ``q_max`` (seed Fig 12)."""

@@ -23,7 +23,6 @@ Energy per cycle and power law (seed Figs 15-16)
 
 from __future__ import annotations
 
-import html
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -93,8 +92,14 @@ class DampingLaw:
                if self.dof > 0 and np.isfinite(self.chi2) else "")
         return f"c(q_max) = {terms}   [{len(self.q_max)} records{fit}]"
 
+    def __repr__(self):
+        coef = ", ".join(f"c{k}={v:.4g}" for k, v in enumerate(self.coefficients))
+        return f"DampingLaw(c(q_max): {coef}; {len(self.q_max)} records)"
+
     def _repr_html_(self):
-        return "<pre>" + html.escape(self.report()) + "</pre>"
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
     def plot(self, ax=None, **kw):
         from ..report.identify_plots import plot_damping_law
@@ -289,6 +294,14 @@ class PowerLaw:
         if self.n_local is not None:
             txt += f"; model's local n {np.min(self.n_local):.3f} .. {np.max(self.n_local):.3f}"
         return txt
+
+    def __repr__(self):
+        return f"PowerLaw(U = {self.alpha:.4g} F^{self.n:.4f} ± {self.n_stderr:.2g}; {len(self.force)} records)"
+
+    def _repr_html_(self):
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
     def plot(self, ax=None, **kw):
         from ..report.identify_plots import plot_power_law

@@ -15,7 +15,6 @@ covariance is the sandwich of :mod:`jointid.identify.uncertainty`, including the
 
 from __future__ import annotations
 
-import html
 import warnings
 from dataclasses import dataclass, field
 
@@ -227,8 +226,14 @@ class PreloadModel:
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
+    def __repr__(self):
+        pars = ", ".join(f"{n}={v:.4g}" for n, v in zip(self.parameter_names, self.parameters))
+        return f"PreloadModel(preload {self.preload!r}, {self.n_records} records: {pars})"
+
     def _repr_html_(self):
-        return "<pre>" + html.escape(self.report()) + "</pre>"
+        from ..report.notebook import result_html
+
+        return result_html(self)
 
     def plot(self, ax=None, coefficient="c"):
         """``coefficient(q_max)`` of the model with its 95 % band over the measured amplitudes."""
