@@ -168,6 +168,11 @@ class CampaignResult:
 
         return campaign_report(self)
 
+    def __repr__(self):
+        preloads = ", ".join(str(p) for p in self.damping_laws)
+        return (f"CampaignResult({self.name!r}: {len(self.records)} records, {len(self.failed)} failed, "
+                f"{len(self.flagged)} flagged, {len(self.groups)} groups, preloads [{preloads}])")
+
     def _repr_html_(self):
         from ..report.notebook import result_html
 
@@ -180,11 +185,6 @@ def _gain_free(gain, terms) -> PooledFit:
     vals, errs = [], []
     for n in names:
         if n == "omega1^2":
-    def __repr__(self):
-        preloads = ", ".join(str(p) for p in self.damping_laws)
-        return (f"CampaignResult({self.name!r}: {len(self.records)} records, {len(self.failed)} failed, "
-                f"{len(self.flagged)} flagged, {len(self.groups)} groups, preloads [{preloads}])")
-
             w, sw = d["omega1"]
             vals.append(w**2)
             errs.append(2 * w * sw)
@@ -275,16 +275,6 @@ def _record_structures(campaign, Structure):
     return per_record, dict(built.values())
 
 
-@single_threaded
-def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) -> CampaignResult:
-    """Identify every record of a campaign, then the groups and the laws.
-
-    Parameters
-    ----------
-    campaign : path or Campaign
-    settings : IdentifySettings, optional
-    **kw
-        Overrides of :class:`IdentifySettings` fields (``terms=...``, ``n_harmonics=...``).
 def summary_warning(notes, n_records, stacklevel=2):
     """One warning for a whole campaign: the kinds of message with their counts and one example
     each (every message stays on its record and in ``results.json``).  Its category is the
@@ -304,6 +294,16 @@ def summary_warning(notes, n_records, stacklevel=2):
                   stacklevel=stacklevel + 1)
 
 
+@single_threaded
+def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) -> CampaignResult:
+    """Identify every record of a campaign, then the groups and the laws.
+
+    Parameters
+    ----------
+    campaign : path or Campaign
+    settings : IdentifySettings, optional
+    **kw
+        Overrides of :class:`IdentifySettings` fields (``terms=...``, ``n_harmonics=...``).
     """
     if settings is None:
         settings = IdentifySettings(**kw)
@@ -456,6 +456,7 @@ def summary_warning(notes, n_records, stacklevel=2):
 
 
 
+    summary_warning(notes, len(outcomes), stacklevel=3)  # 3: past the single-threaded wrapper
     result = CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors,
         models=models, model_errors=model_errors,
@@ -469,4 +470,5 @@ def summary_warning(notes, n_records, stacklevel=2):
     from .backbones import campaign_backbones
 
     return replace(result, backbones=campaign_backbones(result, campaign))
-    summary_warning(notes, len(outcomes), stacklevel=3)  # 3: past the single-threaded wrapper
+
+
