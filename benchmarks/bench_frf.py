@@ -9,7 +9,7 @@ Problem: seed Eq 19-20 (``seed_model()``), ``Q = sin(omega t)``, 401 frequencies
 Measured:
 
 * harmonic balance, ``frequency_response(model, 1, omegas)`` (sequential sweep with
-  predictor + Newton, 9 harmonics), with and without Hill stability; best of ``--repeat``;
+  predictor + Newton, 9 harmonics), with and without Floquet stability; best of ``--repeat``;
 * shooting (``timeint.periodic_orbit``: Newton on the period map + secant on ``q_max``)
   on an evenly spaced subset, per-point time scaled to 401 points;
 * brute force as in the paper: ``solve_ivp`` (DOP853, via ``timeint.integrate``)
@@ -110,7 +110,7 @@ def main(argv=None):
         cpu_ns.append(time.process_time() - c0)
     t_hb = min(times)
     print(
-        f"HB sweep, 401 pts, H=9, Hill stability     : {t_hb:8.3f} s wall (best of {args.repeat}, "
+        f"HB sweep, 401 pts, H=9, Floquet stability  : {t_hb:8.3f} s wall (best of {args.repeat}, "
         f"median {statistics.median(times):.3f} s; CPU {min(cpu):.3f} s)  ratio 1"
     )
     print(

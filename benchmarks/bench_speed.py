@@ -102,12 +102,16 @@ def record(n=1_000_000, fs=20000.0):
     return t, Q, a, 169.0 / (2 * np.pi)
 
 
-def row(label, ms, base_ms=None, base_label="", goal=None):
-    text = f"{label:<52s} {ms:9.1f} ms"
-    if base_ms is not None:
-        text += f"   {base_ms / ms:6.1f}x faster than {base_label} ({base_ms:.1f} ms)"
-    if goal is not None:
-        text += f"   goal <= {goal:g} ms: {'met' if ms <= goal else 'NOT met'}"
+def row(label, new_s, ref_s, ref_label, recorded_ms=None, goal_ms=None):
+    """One line: time, speed-up over the reference, and the goal on the recorded scale.
+
+    The machine is shared, so absolute times vary with its load; the goals are judged
+    on the recorded scale, ``recorded reference time * new / same-run reference``.
+    """
+    text = f"{label:<50s} {new_s * 1e3:8.1f} ms   {ref_s / new_s:5.1f}x faster than {ref_label} ({ref_s * 1e3:.1f} ms)"
+    if goal_ms is not None:
+        scaled = recorded_ms * new_s / ref_s
+        text += f"   recorded scale {scaled:5.1f} ms, goal <= {goal_ms:g}: {'met' if scaled <= goal_ms else 'NOT met'}"
     print(text)
 
 
@@ -138,7 +142,7 @@ def main(argv=None):
                    if ref is not None else None)
         res[key] = new
         label = "frequency given and checked" if key == "given" else "frequency estimated"
-        row(f"identify 1e6 samples, {label}", new * 1e3, old * 1e3, ref_note, goal)
+        row(f"identify 1e6 samples, {label}", new, old, ref_note, RECORDED[key], goal)
         print(f"{'':<6}{new / stream:7.0f}x numpy streaming; of it the signal part (validation, frequency, fit): "
               f"{sig_new * 1e3:.1f} ms" + (f" (reference {sig_old * 1e3:.1f} ms)" if sig_old else ""))
     fit = ForceStateMapping().fit(steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5)).result_
@@ -150,7 +154,7 @@ def main(argv=None):
     sweep = cpu_median(lambda: frequency_response(model, 1.0, omegas), rep)
     sweep_old = (cpu_median(lambda: ref[1].frequency_response(model, 1.0, omegas), rep) if ref is not None
                  else RECORDED["sweep"] / 1e3)
-    row("401-point sweep, seed model, c(q_max) closure", sweep * 1e3, sweep_old * 1e3, ref_note, 40.0)
+    row("401-point sweep, seed model, c(q_max) closure", sweep, sweep_old, ref_note, RECORDED["sweep"], 40.0)
 
     c = SEED_DUFFING_CURVE
     kw = dict(omega_range=c["omega_range"], n_harmonics=c["n_harmonics"], n_time=c["n_time"])
@@ -161,12 +165,14 @@ def main(argv=None):
         n_old = len(ref[1].frequency_response(c["model"], c["force_amplitude"], **kw))
     else:
         cont_old, n_old = RECORDED["curve"] / 1e3, 88
-    per_point = cont * 1e3 / len(curve)
-    row(f"SEED_DUFFING_CURVE continuation ({len(curve)} points)", cont * 1e3, cont_old * 1e3, ref_note, 21.6)
-    external = cont_old * EXTERNAL_CURVE_MS / EXTERNAL_REFERENCE_MS
-    print(f"{'':<6}{per_point:.3f} ms/point (goal <= 0.3: {'met' if per_point <= 0.3 else 'NOT met'}; reference "
-          f"{cont_old * 1e3 / n_old:.3f} ms/point over {n_old} points); {external / cont:.0f}x faster than the external "
-          f"toolbox (648 ms recorded when the reference took 53 ms; goal >= 30x)")
+    row(f"SEED_DUFFING_CURVE continuation ({len(curve)} points)", cont, cont_old, ref_note, RECORDED["curve"], 21.6)
+    per_point, per_point_old = cont * 1e3 / len(curve), cont_old * 1e3 / n_old
+    scaled = RECORDED["curve"] / 88 * per_point / per_point_old
+    external = EXTERNAL_CURVE_MS / EXTERNAL_REFERENCE_MS * cont_old / cont
+    print(f"{'':<6}{per_point:.3f} ms/point (reference {per_point_old:.3f} over {n_old} points; recorded scale "
+          f"{scaled:.3f}, goal <= 0.3: {'met' if scaled <= 0.3 else 'NOT met'}); {external:.0f}x faster than the "
+          f"external toolbox (recorded 648 ms when the reference took 53 ms; goal >= 30x: "
+          f"{'met' if external >= 30 else 'NOT met'})")
     print(f"{'':<6}folds at omega = {', '.join(f'{w:.6f}' for w in curve.fold_omegas)} rad/s")
 
 

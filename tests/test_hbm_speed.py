@@ -106,3 +106,24 @@ def test_amplitude_laws_by_horner_are_polyval():
     p = hbm._Problem(m, 1.0, 9)
     for qm in np.linspace(0.0, 0.02, 57):
         assert np.array_equal(p.coefficients_at(qm), m.coefficients_at(qm))
+
+
+@pytest.mark.parametrize(
+    "model, omegas",
+    [
+        (seed_model(), np.linspace(160, 180, 401)),
+        (SingleModeModel("q + -q^3 + q'", (170.0**2, -5e7, 1.0)), np.linspace(160, 190, 301)),  # jumps down
+        (SingleModeModel("q + -q^3 + q'", (170.0**2, -5e7, 1.0)), np.linspace(190, 160, 301)),  # jumps up
+        (SingleModeModel("q + q^2 + q'^3", (170.0**2, 3e4, 20.0)), np.linspace(150, 190, 201)),
+    ],
+)
+def test_batched_sweep_equals_the_point_by_point_sweep(model, omegas, monkeypatch):
+    batched = frequency_response(model, 1.0, omegas)
+    monkeypatch.setattr(hbm, "BATCH_GUESS", -1.0)  # no batches: every point on its own
+    single = frequency_response(model, 1.0, omegas)
+    np.testing.assert_allclose(batched.q_max, single.q_max, rtol=1e-10)
+    np.testing.assert_allclose(batched.coefficients, single.coefficients, rtol=0,
+                               atol=1e-10 * np.abs(single.coefficients).max())
+    assert np.array_equal(batched.stable, single.stable)
+    jumps = np.flatnonzero(np.abs(np.diff(single.q_max)) > 0.2 * single.q_max[1:])
+    assert np.array_equal(jumps, np.flatnonzero(np.abs(np.diff(batched.q_max)) > 0.2 * batched.q_max[1:]))

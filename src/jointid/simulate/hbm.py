@@ -284,6 +284,8 @@ class _Problem:
             if t is not q_lin and t is not v_lin
         )
         self.PED = self.P @ self.ED
+        self.kq = abs(float(self.theta0[self.i_q])) if self.i_q is not None else 0.0
+        self.D_active = np.ascontiguousarray(D[np.ix_(self.active, self.active)])
         self.laws = tuple(
             (self.lib.index(name), tuple(float(c) for c in poly)) for name, poly in model.amplitude_laws.items()
         )
@@ -324,9 +326,8 @@ class _Problem:
 
     def scales(self, z, omega):
         x = z[: self.active.size]
-        xn = float(np.sqrt(x @ x))
-        kq = abs(self.theta0[self.i_q]) if self.i_q is not None else 0.0
-        return max(abs(self.F), (omega * omega + kq) * xn, _TINY), max(xn, _TINY)
+        xn = math.sqrt(float(x @ x))
+        return max(abs(self.F), (omega * omega + self.kq) * xn, _TINY), max(xn, _TINY)
 
     # -- residual and Jacobian -------------------------------------------------------
 
@@ -468,6 +469,199 @@ class _Problem:
                 )
             z, ev = trial, ev_t
         return z, ev, it
+
+    # -- many frequencies at once ------------------------------------------------------
+
+    def _product(self, g):
+        """``P diag(g) E`` for every row of ``g`` (K, N): ``(K, nx, nx)``.
+
+        From the spectrum of ``g`` by the product-to-sum identities when the grid
+        resolves harmonic ``2H`` (then it is the same sum), else as a matrix product.
+        """
+        if 4 * self.H < self.N:
+            i1, w1, i2, w2 = _product_gather(self.H, tuple(self.active.tolist()))
+            spec = np.fft.rfft(g, axis=1)[:, : 2 * self.H + 1] * (2.0 / self.N)
+            S = np.concatenate([spec.real, -spec.imag], axis=1)
+            return S[:, i1] * w1 + S[:, i2] * w2
+        return self.P @ (g[:, :, None] * self.E)
+
+    def _thetas(self, qm):
+        """Coefficient vectors ``(K, n_terms)`` at amplitudes ``qm`` (the laws' Horner sums)."""
+        th = np.empty((qm.size, self.theta0.size))
+        th[:] = self.theta0
+        for j, poly in self.laws:
+            th[:, j] = _horner(poly, qm)
+        return th
+
+    def peak_batch(self, X):
+        """:func:`_peak` for the rows of ``X``: ``(values, taus, signs)``."""
+        K = X.shape[0]
+        qd = X @ self.E_dense.T
+        aq = np.abs(qd)
+        M = qd.shape[1]
+        h = 2.0 * np.pi / M
+        i = np.argmax(aq, axis=1)
+        rows = np.arange(K)
+        y0, y1, y2 = aq[rows, i - 1], aq[rows, i], aq[rows, (i + 1) % M]
+        den = y0 - 2.0 * y1 + y2
+        tau0 = i * h
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tau = tau0 + np.where(den < 0.0, 0.5 * h * (y0 - y2) / den, 0.0)
+        a, b = X[:, self.a_idx], X[:, self.b_idx]
+        kh = self.kh
+        ka, kb = kh * a, kh * b
+        # rows of (dq/dtau, d2q/dtau2) against cos and sin of the harmonics
+        Mc = np.stack([kb, -(kh * ka)], axis=1)  # (K, 2, nh)
+        Ms = np.stack([-ka, -(kh * kb)], axis=1)
+        run = np.ones(K, bool)
+        back = np.zeros(K, bool)
+        for _ in range(8):
+            ph = np.multiply.outer(tau, kh)
+            gd = (Mc @ np.cos(ph)[:, :, None] + Ms @ np.sin(ph)[:, :, None])[:, :, 0]
+            g, d2 = gd[:, 0], gd[:, 1]
+            run &= d2 != 0.0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.where(run, g / d2, 0.0)
+            tau = tau - step
+            out = run & (np.abs(tau - tau0) > h)  # left the neighbourhood of the grid maximum
+            back |= out
+            run &= ~out & ~(np.abs(step) < 1e-8)
+            if not run.any():
+                break
+        tau = np.where(back, tau0, tau)
+        ph = np.multiply.outer(tau, kh)
+        q_tau = np.einsum("ij,ij->i", a, np.cos(ph)) + np.einsum("ij,ij->i", b, np.sin(ph))
+        q_tau = q_tau + X[:, self.const_idx].sum(axis=1)
+        worse = np.abs(q_tau) < y1  # never worse than the grid (guards a stray Newton)
+        tau = np.where(worse, tau0, tau)
+        q_tau = np.where(worse, qd[rows, i], q_tau)
+        return np.abs(q_tau), tau, np.where(q_tau >= 0, 1.0, -1.0)
+
+    def evaluate_batch(self, Z, W, jacobian=False):
+        """:meth:`evaluate` (and :meth:`jacobian`) for rows ``Z`` at frequencies ``W``.
+
+        Returns a dict of arrays: ``R`` (K, m), ``err`` (K,), ``peak`` (three arrays or
+        None) and, when asked, ``J`` (K, m, m).
+        """
+        nx, N = self.active.size, self.N
+        X = Z[:, :nx]
+        qm = Z[:, nx] if self.closure else None
+        th = self._thetas(qm) if self.closure else self.theta0[None, :]
+        QD = X @ self.E_ED.T
+        q, dv = QD[:, :N], QD[:, N:]
+        w = W[:, None]
+        v = w * dv
+        h = None
+        for j, func, _, _ in self.fast_terms:
+            c = th[:, j : j + 1]
+            if np.any(c != 0.0):
+                h = c * func(q, v) if h is None else h + c * func(q, v)
+        if h is None:
+            h = np.zeros_like(q)
+        R = np.empty((Z.shape[0], self.m))
+        R[:, :nx] = h @ self.P.T - (w * w) * self.k2 * X - self.f
+        xn = np.sqrt(np.einsum("ij,ij->i", X, X))
+        kq = abs(self.theta0[self.i_q]) if self.i_q is not None else 0.0
+        sR = np.maximum(np.maximum(abs(self.F), (W * W + kq) * xn), _TINY)
+        err = np.sqrt(np.einsum("ij,ij->i", R[:, :nx], R[:, :nx])) / sR
+        peak = None
+        if self.closure:
+            peak = self.peak_batch(X)
+            R[:, nx] = qm - peak[0]
+            err = np.maximum(err, np.abs(R[:, nx]) / np.maximum(xn, _TINY))
+        err = np.where(np.isfinite(err), err, np.inf)
+        out = {"R": R, "err": err, "peak": peak}
+        if jacobian:
+            out["J"] = self._jacobian_batch(Z, W, q, v, th, peak)
+        return out
+
+    def _jacobian_batch(self, Z, W, q, v, th, peak):
+        nx, K = self.active.size, Z.shape[0]
+        gq = sum(th[:, j : j + 1] for j in self.lin_q) if self.lin_q else np.zeros((th.shape[0], 1))
+        gv = sum(th[:, j : j + 1] for j in self.lin_v) if self.lin_v else np.zeros((th.shape[0], 1))
+        for j, dq, dv, stiffness in self.nl_terms:
+            c = th[:, j : j + 1]
+            if not np.any(c != 0.0):
+                continue
+            if dq is not None and (dv is not None or stiffness):
+                gq = gq + c * dq(q, v)
+                if not stiffness:
+                    gv = gv + c * dv(q, v)
+            else:
+                a, b = self.lib.terms[j].derivatives(q, v)
+                gq = gq + c * a
+                gv = gv + c * b
+        gq = np.broadcast_to(gq, (K, gq.shape[1]))
+        gv = np.broadcast_to(gv, (K, gv.shape[1]))
+        J = np.zeros((K, self.m, self.m))
+        eye = np.eye(nx)
+        if gq.shape[1] > 1:
+            J[:, :nx, :nx] = self._product(gq)
+        else:
+            J[:, :nx, :nx] = gq[:, :, None] * eye
+        if gv.shape[1] > 1:
+            J[:, :nx, :nx] += self._product(W[:, None] * gv) @ self.D_active
+        else:
+            J[:, :nx, :nx] += (W[:, None] * gv)[:, :, None] * self.PED
+        J[:, np.arange(nx), np.arange(nx)] -= (W * W)[:, None] * self.k2
+        if self.closure:
+            qm = Z[:, nx]
+            dh = np.zeros_like(q)
+            for j, dpoly in self.law_der:
+                d = _horner(dpoly, qm)
+                if np.any(d != 0.0):
+                    dh += d[:, None] * self.lib.terms[j].func(q, v)
+            J[:, :nx, nx] = dh @ self.P.T
+            _, tau, sign = peak
+            row = np.zeros((K, nx))
+            row[:, self.a_idx] = np.cos(np.multiply.outer(tau, self.kh))
+            row[:, self.b_idx] = np.sin(np.multiply.outer(tau, self.kh))
+            row[:, self.const_idx] = 1.0
+            J[:, nx, :nx] = -sign[:, None] * row
+            J[:, nx, nx] = 1.0
+        return J
+
+    def newton_batch(self, Z0, W, tol=1e-12, max_iter=4):
+        """Full Newton steps for many frequencies at once.
+
+        Every point takes the step of :meth:`newton` while it decreases the residual;
+        a point that would need the damping of :meth:`newton`, or more than
+        ``max_iter`` steps, stops there (``converged`` False) for the caller to solve
+        it alone.  Returns ``(Z, err, iterations, converged, peaks)``.
+        """
+        Z = np.array(Z0, float)
+        K = Z.shape[0]
+        ev = self.evaluate_batch(Z, W, jacobian=True)
+        err = ev["err"]
+        peaks = None if ev["peak"] is None else [p.copy() for p in ev["peak"]]
+        its = np.zeros(K, int)
+        failed = np.zeros(K, bool)
+        act = np.flatnonzero(err > tol)
+        J, R = ev["J"][act], ev["R"][act]
+        while act.size:
+            if its[act[0]] >= max_iter:
+                failed[act] = True
+                break
+            its[act] += 1
+            try:
+                step = np.linalg.solve(J, -R[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                failed[act] = True
+                break
+            trial = Z[act] + step
+            et = self.evaluate_batch(trial, W[act], jacobian=True)
+            ok = np.all(np.isfinite(step), axis=1) & ((et["err"] < err[act]) | (et["err"] <= tol))
+            failed[act[~ok]] = True
+            sel = act[ok]
+            Z[sel] = trial[ok]
+            err[sel] = et["err"][ok]
+            if peaks is not None:
+                for p, pt in zip(peaks, et["peak"]):
+                    p[sel] = pt[ok]
+            more = err[sel] > tol
+            act = sel[more]
+            J, R = et["J"][ok][more], et["R"][ok][more]
+        return Z, err, its, ~failed & (err <= tol), peaks
 
     def _fail_msg(self, omega, err, it, tol, why):
         self._last_failure = f"{why} after {it} iterations, scaled residual {err:.3g} > tol {tol:.1g}"
@@ -1419,16 +1613,22 @@ def _assemble(problem, pts, folds, method, stability):
     qmax = np.empty(n_pts)
     res = np.empty(n_pts)
     its = np.empty(n_pts, dtype=int)
+    missing = []
     for i, (w, z, ev, it) in enumerate(pts):
         coefs[i, problem.active] = z[:nx]
         if problem.closure:
             qmax[i] = z[nx]
             theta[i] = problem.model.coefficients_at(z[nx])
         else:
-            qmax[i] = ev["peak"][0] if ev.get("peak") is not None else problem.peak(z[:nx])[0]
+            if ev.get("peak") is not None:
+                qmax[i] = ev["peak"][0]
+            else:
+                missing.append(i)
             theta[i] = problem.theta0
         res[i] = ev["err"]
         its[i] = it
+    if missing:  # q_max of all the points at once
+        qmax[missing] = problem.peak_batch(coefs[missing][:, problem.active])[0]
     stable = floquet = None
     if stability:
         floquet = problem.floquet_batch(coefs, omega, theta)
@@ -1459,18 +1659,63 @@ def _assemble(problem, pts, folds, method, stability):
 # ----------------------------------------------------------------------------------------
 
 
+#: Predictor error (relative) up to which frequencies are solved together in a sweep.
+BATCH_GUESS = 1e-2
+#: Longest batch of a sweep.
+BATCH_MAX = 64
+#: Relative distance from the one-step predictor within which a batched solution is the
+#: one the point-by-point sweep reaches (another branch lies much farther away).
+SAME_BRANCH = 0.02
+
+
 def _sweep(problem, omegas, tol):
     """Sequential solutions at ``omegas``; predictor: polynomial extrapolation (secant,
     then quadratic) through the previous solutions, falling back to the previous
-    solution and to a fresh start."""
+    solution and to a fresh start.
+
+    Where the response is smooth the predictor stays accurate many points ahead: the
+    last one-step predictor error ``e`` grows about as ``k^3 e`` over ``k`` steps, and
+    while that stays below ``BATCH_GUESS`` the next points are solved together by
+    :meth:`_Problem.newton_batch`.  A batched solution is kept while it converged with
+    full steps and lies within ``SAME_BRANCH`` of the one-step predictor (the branch the
+    point-by-point sweep follows); the first other point is solved alone as before,
+    jumps included.
+    """
+    omegas = [float(w) for w in omegas]
     pts = []
     hist_w, hist_z = [], []
-    for w in omegas:
-        w = float(w)
+    err1 = np.inf  # relative error of the last one-step prediction
+    i, n = 0, len(omegas)
+    while i < n:
+        k = 0
+        while len(hist_z) == 3 and k < min(BATCH_MAX, n - i) and err1 * (k + 1) * (k + 2) * (k + 3) / 6 <= BATCH_GUESS:
+            k += 1
+        if k >= 4:
+            ws = np.array(omegas[i : i + k])
+            Z0 = np.array([_extrapolate(hist_w, hist_z, w) for w in ws])
+            Z, err, its, ok, peaks = problem.newton_batch(Z0, ws, tol)
+            taken = 0
+            for j, w in enumerate(ws):
+                guess = _extrapolate(hist_w, hist_z, float(w))
+                d = Z[j] - guess
+                dist = math.sqrt(d @ d) / max(math.sqrt(Z[j] @ Z[j]), _TINY)
+                if not ok[j] or dist > SAME_BRANCH:
+                    break
+                peak = None if peaks is None else tuple(float(p[j]) for p in peaks)
+                pts.append((float(w), Z[j], {"err": float(err[j]), "peak": peak}, int(its[j])))
+                hist_w, hist_z = (hist_w + [float(w)])[-3:], (hist_z + [Z[j]])[-3:]
+                err1 = dist
+                taken += 1
+            i += taken
+            if taken == k:
+                continue
+        w = omegas[i]
         if not hist_z:
             z, ev, it = problem.fresh(w, tol)
+            jumped = False
         else:
             guess = _extrapolate(hist_w, hist_z, w)
+            jumped = False
             try:
                 z, ev, it = problem.newton(guess, w, tol)
             except ConvergenceError:
@@ -1478,10 +1723,15 @@ def _sweep(problem, omegas, tol):
                     z, ev, it = problem.newton(hist_z[-1], w, tol)
                 except ConvergenceError:
                     z, ev, it = problem.fresh(w, tol)
-                hist_w, hist_z = [], []  # a jump: restart the predictor
+                jumped = True
+            d = z - guess
+            err1 = np.inf if jumped else math.sqrt(d @ d) / max(math.sqrt(z @ z), _TINY)
         pts.append((w, z, ev, it))
+        if jumped:
+            hist_w, hist_z = [], []  # a jump: restart the predictor
         hist_w = (hist_w + [w])[-3:]
         hist_z = (hist_z + [z])[-3:]
+        i += 1
     return pts
 
 
@@ -1535,7 +1785,9 @@ class _Arclength:
 
     @staticmethod
     def tangent(Gy, t_prev):
-        A = np.vstack([Gy, t_prev])
+        A = np.empty((Gy.shape[0] + 1, Gy.shape[1]))
+        A[:-1] = Gy
+        A[-1] = t_prev
         rhs = np.zeros(A.shape[0])
         rhs[-1] = 1.0
         t = _solve(A, rhs)
@@ -1550,8 +1802,12 @@ class _Arclength:
                 return y, Gy, ev, it
             if not np.isfinite(ev["err"]):
                 return None
-            A = np.vstack([Gy, t])
-            rhs = -np.append(G, t @ (y - yp))
+            A = np.empty((Gy.shape[0] + 1, Gy.shape[1]))
+            A[:-1] = Gy
+            A[-1] = t
+            rhs = np.empty(A.shape[0])
+            rhs[:-1] = -G
+            rhs[-1] = -float(t @ (y - yp))
             try:
                 dy = _solve(A, rhs)
             except np.linalg.LinAlgError:
