@@ -33,8 +33,10 @@ a duplicated file) fails that record only.
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -369,28 +371,32 @@ def _read_csv(path: Path, spec: RecordSpec):
     with open(path, "rb") as fh:
         head = fh.read(4096)
     try:
-        _decode(head, where(path, spec.index)[:-2], "record file")
+        _decode(head, where(spec.file, spec.index)[:-2], "record file")
     except ManifestError as exc:
         raise RecordError(str(exc)) from None
     header = head.decode("utf-8-sig", errors="replace").splitlines()[0] if head else ""
     names = [h.strip() for h in header.strip().split(",")]
     if not names or names == [""]:
-        raise RecordError(f"{where(path, spec.index)}empty file; expected a header row 'time,force,...'")
+        raise RecordError(f"{where(spec.file, spec.index)}empty file; expected a header row 'time,force,...'")
     if len(set(names)) != len(names):
-        raise RecordError(f"{where(path, spec.index)}duplicate column names in header {names}")
+        raise RecordError(f"{where(spec.file, spec.index)}duplicate column names in header {names}")
     try:
-        rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, encoding="utf-8")
+        with warnings.catch_warnings():  # no data rows: reported below as too few samples
+            warnings.simplefilter("ignore", UserWarning)
+            rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, encoding="utf-8")
     except UnicodeDecodeError as exc:
-        raise RecordError(f"{where(path, spec.index)}record file must be UTF-8 text; it holds bytes that are "
+        raise RecordError(f"{where(spec.file, spec.index)}record file must be UTF-8 text; it holds bytes that are "
                           f"not (another encoding or binary data); save it as UTF-8") from None
     except ValueError as exc:
         msg = str(exc)
         raise RecordError(
-            f"{where(path, spec.index)}columns of different lengths or non-numeric values ({msg}); "
+            f"{where(spec.file, spec.index)}columns of different lengths or non-numeric values ({msg}); "
             f"expected {len(names)} numeric columns {names} on every row"
         ) from exc
+    if rows.shape[0] == 0:
+        raise RecordError(f"{where(spec.file, spec.index)}no data rows below the header {names}; expected samples")
     if rows.shape[1] != len(names):
-        raise RecordError(f"{where(path, spec.index)}header names {len(names)} columns but rows have {rows.shape[1]}")
+        raise RecordError(f"{where(spec.file, spec.index)}header names {len(names)} columns but rows have {rows.shape[1]}")
     return {n: rows[:, j] for j, n in enumerate(names)}
 
 
@@ -462,8 +468,8 @@ def _toml_value(v) -> str:
         return str(int(v))
     if isinstance(v, (float, np.floating)):
         return repr(float(v))
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, str):  # a JSON string is a valid TOML basic string (same escapes)
+        return json.dumps(v, ensure_ascii=False)
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):

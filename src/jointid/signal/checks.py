@@ -18,7 +18,12 @@ Record checks (:func:`record_flags`):
     the next distinct value (the amplitude histogram of a sinusoid has no such spike).
 ``dead_channel``
     The fundamental of a channel is not above its noise (``z`` below 6), or the fitted
-    harmonics explain less than half of its variance.
+    harmonics explain less than half of its variance (noise: the robust scale of the
+    residual, so that spikes are not taken for noise).
+``spikes``
+    Samples far off the fitted harmonics: more than 10 robust standard deviations of the
+    residual (a Gaussian sample exceeds that with probability 1e-23) and more than 1e-6 of
+    the channel's peak.
 ``transient``
     The fundamental fitted to the first and to the second half of the record differ by more
     than the noise allows (``z`` above 6) and by more than 2 %.
@@ -50,6 +55,8 @@ Z_LIMIT = 6.0
 TRANSIENT_FLOOR = 0.02
 #: Smallest fraction of a channel's variance its fitted harmonics must explain.
 MIN_EXPLAINED = 0.5
+#: Residual z-score (robust) above which a sample is a spike.
+SPIKE_Z = 10.0
 #: Clipping: share of samples at the extremes, and how many times the next level's count.
 CLIP_FRACTION = 0.005
 CLIP_RATIO = 4.0
@@ -85,8 +92,13 @@ class Flag:
         return f"<b>{html.escape(self.name)}</b>: {html.escape(self.message)}"
 
 
+#: Largest magnitude a sample may have: the regressions square and cube the signals.
+MAX_ABS = 1e100
+
+
 def check_live(x, channel: str) -> None:
-    """Raise a :class:`RecordError` when a channel is constant (a stuck or dead sensor).
+    """Raise a :class:`RecordError` when a channel is constant (a stuck or dead sensor) or holds
+    values so large (beyond ``MAX_ABS``) that the regressions would overflow.
 
     Examples
     --------
@@ -97,6 +109,10 @@ def check_live(x, channel: str) -> None:
     """
     x = np.asarray(x, dtype=float)
     lo, hi = float(np.min(x)), float(np.max(x))
+    if max(abs(lo), abs(hi)) > MAX_ABS:
+        i = int(np.argmax(np.abs(x)))
+        raise RecordError(f"channel {channel!r}: value {x[i]:.3g} at sample {i} is beyond the usable range "
+                          f"(|x| <= {MAX_ABS:g}); a corrupted sample or a wrong unit")
     if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):
         value = float(np.median(x))
         what = "zero at every sample" if value == 0 else f"constant ({value:.6g} at every sample)"
@@ -137,19 +153,39 @@ def _fundamental(series) -> complex:
     return complex(c[1], c[2])
 
 
-def _dead_flag(series, resid_rms, x, n, channel) -> Flag | None:
-    """``dead_channel`` from the fundamental's noise z-score and the variance explained."""
+def _robust_sigma(r) -> float:
+    return 1.4826 * float(np.median(np.abs(r - np.median(r))))
+
+
+def _dead_flag(series, sigma, x, n, channel) -> Flag | None:
+    """``dead_channel`` from the fundamental's noise z-score and the variance explained
+    (``sigma``: robust scale of the residual, so that a few spikes do not count as noise)."""
     X1 = abs(_fundamental(series))
-    sigma = max(float(resid_rms), 1e-300)
+    sigma = max(float(sigma), 1e-300)
     z = X1 / (sigma * np.sqrt(2.0 / n))
     var = float(np.var(x))
-    explained = 1.0 - resid_rms**2 / var if var > 0 else 0.0
+    explained = max(0.0, 1.0 - sigma**2 / var) if var > 0 else 0.0
     if z < Z_LIMIT or explained < MIN_EXPLAINED:
         return Flag("dead_channel", f"channel {channel!r}: the excitation frequency is not above the noise "
                                     f"(fundamental {X1:.3g}, noise z = {z:.2f}, harmonics explain "
                                     f"{100 * explained:.1f} % of the variance); a dead or disconnected sensor",
                     {"channel": channel, "fundamental": X1, "z": z, "explained": explained})
     return None
+
+
+def _spike_flag(r, x, channel) -> Flag | None:
+    """``spikes`` when samples lie far off the fitted harmonics (``r``: the residual; robust scale)."""
+    scale = _robust_sigma(r)
+    peak = float(np.max(np.abs(x)))
+    limit = max(SPIKE_Z * scale, 1e-6 * peak)
+    bad = np.abs(r) > limit
+    if not bad.any():
+        return None
+    i = int(np.argmax(np.abs(r)))
+    return Flag("spikes", f"channel {channel!r}: {int(bad.sum())} sample(s) lie more than {SPIKE_Z:g} robust standard "
+                          f"deviations off the fitted harmonics, the worst {r[i]:.4g} at sample {i}; spikes or "
+                          f"dropouts", {"channel": channel, "n_samples": int(bad.sum()), "worst": float(r[i]),
+                                        "worst_sample": i, "robust_sigma": scale})
 
 
 def _halves_flag(t, x, omega, H, t0, channel) -> tuple[float, float, float]:
@@ -194,12 +230,17 @@ def record_flags(signals, *, channels=("force", "accel"), n_harmonics=None) -> t
         f = clipping_flag(x, ch)
         if f is not None:
             flags.append(f)
-    for ch, series, r, x in ((channels[0], fQ, rQ, Q), (channels[1], acc, signals.accel_residual_rms, a)):
-        f = _dead_flag(series, r, x, n, ch)
+    resid = {ch: x - series(t) for ch, series, x in ((channels[0], fQ, Q), (channels[1], acc, a))}
+    for ch, series, x in ((channels[0], fQ, Q), (channels[1], acc, a)):
+        f = _dead_flag(series, _robust_sigma(resid[ch]), x, n, ch)
         if f is not None:
             flags.append(f)
     if any(f.name == "dead_channel" for f in flags):
         return tuple(flags)  # the other checks compare signals that are not there
+    for ch, x in zip(channels, (Q, a)):
+        f = _spike_flag(resid[ch], x, ch)
+        if f is not None:
+            flags.append(f)
 
     # steady state: the fundamental of the first and second halves
     if n >= 8 * (2 * H + 1):
@@ -280,14 +321,25 @@ def scale_outliers(values, *, factor: float, min_records: int = 3) -> dict:
             for k, lv in zip(keys, logs) if abs(lv - med) > limit}
 
 
-def trend_outliers(x, y, *, factor: float, min_records: int = 5) -> dict:
+def _theil_sen(lx, ly):
+    """Median pairwise slope and median intercept of a line through ``(lx, ly)``."""
+    i, j = np.triu_indices(lx.size, 1)
+    dx = lx[j] - lx[i]
+    ok = np.abs(dx) > 1e-12
+    slope = float(np.median((ly[j] - ly[i])[ok] / dx[ok])) if ok.any() else 0.0
+    return slope, float(np.median(ly - slope * lx))
+
+
+def trend_outliers(x, y, *, factor: float, min_records: int = 5, max_pairs_n: int = 60) -> dict:
     """Members of a group far off the group's power-law trend ``y ~ x^p``.
 
-    A straight line through ``(log x, log y)`` is fitted robustly (Theil-Sen: the median of the
-    pairwise slopes, then the median intercept) and a member whose ``y`` is off the line by
-    more than ``factor`` (and by more than 6 robust standard deviations of the residuals) is
-    returned.  Used for the damping coefficient against the amplitude: ``c`` changes with
-    ``q_max`` along the damping law, but a record in other units falls off that law.
+    A straight line through ``(log x, log y)`` of the other members is fitted robustly
+    (Theil-Sen: the median of the pairwise slopes, then the median intercept) and a member
+    whose ``y`` is off that line by more than ``factor`` (and by more than 6 robust standard
+    deviations of the others' residuals) is returned.  Used for the damping coefficient
+    against the amplitude: ``c`` changes with ``q_max`` along the damping law, but a record
+    in other units falls off that law.  Groups of more than ``max_pairs_n`` members use one
+    line through all of them (one outlier cannot move it).
 
     Parameters
     ----------
@@ -309,16 +361,26 @@ def trend_outliers(x, y, *, factor: float, min_records: int = 5) -> dict:
     [3]
     """
     keys = [k for k in y if k in x and all(v is not None and np.isfinite(v) and v > 0 for v in (x[k], y[k]))]
-    if len(keys) < min_records:
+    n = len(keys)
+    if n < min_records:
         return {}
     lx = np.log([x[k] for k in keys])
     ly = np.log([y[k] for k in keys])
-    i, j = np.triu_indices(len(keys), 1)
-    dx = lx[j] - lx[i]
-    ok = np.abs(dx) > 1e-12
-    slope = float(np.median((ly[j] - ly[i])[ok] / dx[ok])) if ok.any() else 0.0
-    r = ly - slope * lx
-    r = r - np.median(r)
-    mad = 1.4826 * float(np.median(np.abs(r)))
-    limit = max(np.log(factor), Z_LIMIT * mad)
-    return {k: (float(np.exp(rk)), float(y[k] / np.exp(rk))) for k, rk in zip(keys, r) if abs(rk) > limit}
+    if n > max_pairs_n:
+        sub = np.linspace(0, n - 1, max_pairs_n).astype(int)  # the line from a spread subset
+        slope, icpt = _theil_sen(lx[sub], ly[sub])
+        r_all = ly - slope * lx - icpt
+        mad = 1.4826 * float(np.median(np.abs(r_all)))
+        fits = [(r_all[m], mad) for m in range(n)]
+    else:
+        fits = []
+        for m in range(n):
+            others = np.arange(n) != m
+            slope, icpt = _theil_sen(lx[others], ly[others])
+            r = ly[others] - slope * lx[others] - icpt
+            fits.append((ly[m] - slope * lx[m] - icpt, 1.4826 * float(np.median(np.abs(r)))))
+    out = {}
+    for k, (rk, mad) in zip(keys, fits):
+        if abs(rk) > max(np.log(factor), Z_LIMIT * mad):
+            out[k] = (float(np.exp(rk)), float(y[k] / np.exp(rk)))
+    return out
