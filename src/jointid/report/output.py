@@ -170,7 +170,8 @@ def _write_set(result, out, run_id, figures, html) -> dict:
     cols = ["preload"] + [f"c{k}" for k in range(result.settings.damping_order + 1)]
     paths["damping_laws"] = write_csv(out / "damping_laws.csv", law_rows, cols)
     # each figure is rendered once; the same PNG bytes are written and embedded
-    figs = [(n, c, figure_to_png(f, dpi=120)) for n, c, f in campaign_figures(result)] if (figures or html) else []
+    # each figure is drawn once (PNG file and HTML); --no-figures skips them in both
+    figs = [(n, c, figure_to_png(f, dpi=120)) for n, c, f in campaign_figures(result)] if figures else []
     if figures:
         paths["figures"] = [atomic_write(out / "figures" / name, png) for name, _, png in figs]
     if html:
@@ -211,12 +212,20 @@ def campaign_sections(result, figs) -> list:
     return [groups, laws, repred, figures, records]
 
 
-def campaign_figures(result) -> list:
+#: Most figures drawn for one campaign (a campaign of many groups would otherwise spend
+#: minutes drawing figures nobody pages through); the tables and results.json hold every group.
+MAX_FIGURES = 60
+
+
+def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
     """``(file name, caption, figure)`` of the damping laws, power laws, per-record
-    parameters and hysteresis loops (filtered and unfiltered) of a campaign result."""
+    parameters and hysteresis loops (filtered and unfiltered) of a campaign result;
+    at most ``max_figures`` (preload by preload, group by group)."""
     written = []
     preloads = list(result.damping_laws)
     for p in preloads:
+        if len(written) >= max_figures:
+            break
         law = result.damping_laws[p]
         groups = [g for g in result.groups if g.preload == p]
         if law is not None:
@@ -232,7 +241,10 @@ def campaign_figures(result) -> list:
             ax.set_title(f"energy per cycle, preload {tex_safe(p)}")
             written.append((f"power_law_{slug(p)}.png", f"energy per cycle vs joint force, preload {p}", ax.figure))
         for g in groups:
-            members = [r for r in result.records if r.spec.index in set(g.record_indices)]
+            if len(written) + 2 > max_figures:
+                break
+            indices = set(g.record_indices)
+            members = [r for r in result.records if r.spec.index in indices]
             if not members:
                 continue
             tag = f"{slug(p)}_F{slug(g.force_level)}"
