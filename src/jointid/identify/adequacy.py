@@ -3,15 +3,15 @@
 Three checks, each with the calibrated covariances of :mod:`jointid.identify.uncertainty`:
 
 * **equality across force levels** of the parameters a group fit shares (``omega1^2``,
-  ``k3`` ...): with ``theta_g`` and ``C_g`` the pooled fit of force level ``g`` (independent
+  ``k3`` ...; those without an amplitude law in the preload model): with ``theta_g`` and ``C_g`` the pooled fit of force level ``g`` (independent
   records), ``chi^2 = sum_g (theta_g - theta_bar)^T C_g^-1 (theta_g - theta_bar)`` with
   ``theta_bar`` the covariance-weighted mean, on ``(G - 1) k`` degrees of freedom, jointly and
   per parameter.  A model that holds gives the same parameters at every level; a friction
   joint fitted as a cubic spring gives a ``k3`` that falls with the level;
 * **per-record residual against the preload model**: each record's weighted misfit
   ``|W_r (z_r - R_r theta_r)|^2 / p`` in its reduced space (about 1 when the model explains
-  the record to the noise); records far above their group's median are outliers
-  (:func:`~jointid.signal.checks.scale_outliers`), and a trend of the records' own
+  the record to the noise, with a calibrated p-value); a record beyond the noise
+  (``p < P_LIMIT / n_records``) and far above its level's median is an outlier, and a trend of the records' own
   ``omega1`` with the acquisition order (beside ``q_max``) is a drift;
 * **explained fractions**: of the restoring force ``Q - q''`` (energy), and of its
   harmonics above the first (where the nonlinear terms show).
@@ -23,11 +23,10 @@ import html
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+from scipy import linalg, stats
 
 from ..conventions import harmonic_index
 from ..errors import IdentificationError
-from ..signal.checks import scale_outliers
 from .fsm import record_whitenings
 from .model import _expansion
 from .uncertainty import scaled_inverse
@@ -37,8 +36,8 @@ __all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equal
 
 #: p-value below which a check says the model does not hold.
 P_LIMIT = 1e-3
-#: A record whose misfit is this many times its group's median is an outlier.
-OUTLIER_FACTOR = 10.0
+#: A record whose misfit is this many times its level's median (and beyond the noise) is an outlier.
+OUTLIER_FACTOR = 5.0
 #: |t| of the order trend of the own omega1 above which a group drifts.
 DRIFT_T = 5.0
 
@@ -109,8 +108,9 @@ class RecordAdequacy:
     harmonic_share: float
     outlier: bool = False
     outlier_ratio: float = float("nan")
-    energies: tuple = field(default=(np.nan, np.nan, np.nan, np.nan), repr=False)  # force, its residual,
-    # harmonics above the first, their residual (sums of squares over the record)
+    p_value: float = float("nan")
+    energies: tuple = field(default=(np.nan,) * 5, repr=False)  # force, its residual, harmonics above
+    # the first, their residual, and the residual the noise alone leaves there (sums of squares over the record)
 
     def summary(self) -> dict:
         def num(x):
@@ -119,7 +119,7 @@ class RecordAdequacy:
         return {"record": self.record, "level": self.level, "q_max": num(self.q_max), "misfit": num(self.misfit),
                 "explained_force": num(self.explained_force), "explained_harmonics": num(self.explained_harmonics),
                 "harmonic_share": num(self.harmonic_share), "outlier": bool(self.outlier),
-                "outlier_ratio": num(self.outlier_ratio)}
+                "outlier_ratio": num(self.outlier_ratio), "p_value": num(self.p_value)}
 
 
 @dataclass(frozen=True)
@@ -169,12 +169,20 @@ class AdequacyResult:
     def _fractions(self, attr):
         """Energy-weighted fraction over all records and the lowest record's."""
         v = np.array([getattr(r, attr) for r in self.records], float)
-        e = np.array([r.energies for r in self.records], float).reshape(-1, 4)
+        e = np.array([r.energies for r in self.records], float).reshape(-1, 5)
         j = 0 if attr == "explained_force" else 2
         ok = np.isfinite(e[:, j]) & np.isfinite(e[:, j + 1])
         tot = 1.0 - float(np.sum(e[ok, j + 1]) / np.sum(e[ok, j])) if ok.any() and np.sum(e[ok, j]) > 0 else np.nan
         v = v[np.isfinite(v)]
         return (tot, float(np.min(v))) if v.size else (float("nan"), float("nan"))
+
+    @property
+    def harmonic_residual_to_noise(self) -> float:
+        """Residual of the harmonics above the first over what the noise alone leaves there (about 1
+        when the model explains them to the noise, much more when it misses or invents them)."""
+        e = np.array([r.energies for r in self.records], float).reshape(-1, 5)
+        ok = np.isfinite(e[:, 3]) & np.isfinite(e[:, 4])
+        return float(np.sum(e[ok, 3]) / np.sum(e[ok, 4])) if ok.any() and np.sum(e[ok, 4]) > 0 else float("nan")
 
     def summary(self) -> dict:
         def num(x):
@@ -199,6 +207,7 @@ class AdequacyResult:
             "explained_force_min": num(efmin),
             "explained_harmonics": num(eh),
             "explained_harmonics_min": num(ehmin),
+            "harmonic_residual_to_noise": num(self.harmonic_residual_to_noise),
             "records": [r.summary() for r in self.records],
         }
 
@@ -218,7 +227,8 @@ class AdequacyResult:
             mis = np.median([r.misfit for r in self.records])
             lines.append(f"  records: misfit median {mis:.3g} (1 = explained to the noise); restoring force explained "
                          f"{100 * ef:.6g} % (lowest record {100 * efmin:.6g} %); harmonics above the first explained "
-                         f"{100 * eh:.3g} % over all records")
+                         f"{100 * eh:.3g} % over all records (residual {self.harmonic_residual_to_noise:.3g} times the "
+                         f"noise's)")
         if self.outliers:
             lines.append(f"  outlier records: {', '.join(str(o) for o in self.outliers)}")
         lines += [f"  {m}" for m in self.messages]
@@ -234,13 +244,16 @@ class AdequacyResult:
         return plot_level_equality(self, ax=ax)
 
 
-def level_equality(level_fits) -> tuple:
+def level_equality(level_fits, names=None) -> tuple:
     """Equality tests of the shared parameters across force levels.
 
     Parameters
     ----------
     level_fits : sequence of (level, PooledFit)
         The pooled fit of each force level (with its covariance).
+    names : sequence of str, optional
+        The shared parameters to test (default all); a coefficient that follows an amplitude
+        law is expected to differ between levels and is left out by :func:`assess_preload`.
 
     Returns
     -------
@@ -249,11 +262,15 @@ def level_equality(level_fits) -> tuple:
     level_fits = [(lv, f) for lv, f in level_fits if f is not None and f.covariance is not None]
     if len(level_fits) < 2:
         return (), float("nan"), 0, float("nan")
-    names = level_fits[0][1].shared_names
-    if any(f.shared_names != names for _, f in level_fits):
+    all_names = level_fits[0][1].shared_names
+    if any(f.shared_names != all_names for _, f in level_fits):
         raise IdentificationError("the force levels' pooled fits have different shared parameters")
-    th = [np.asarray(f.shared, float) for _, f in level_fits]
-    Ci = [scaled_inverse(f.covariance.shared) for _, f in level_fits]
+    sel = [j for j, n in enumerate(all_names) if names is None or n in names]
+    if not sel:
+        return (), float("nan"), 0, float("nan")
+    names = tuple(all_names[j] for j in sel)
+    th = [np.asarray(f.shared, float)[sel] for _, f in level_fits]
+    Ci = [scaled_inverse(np.asarray(f.covariance.shared)[np.ix_(sel, sel)]) for _, f in level_fits]
     S = sum(Ci)
     bar = scaled_inverse(S) @ sum(c @ t for c, t in zip(Ci, th))
     chi2 = float(sum((t - bar) @ c @ (t - bar) for c, t in zip(Ci, th)))
@@ -262,7 +279,7 @@ def level_equality(level_fits) -> tuple:
     levels = tuple(lv for lv, _ in level_fits)
     for j, n in enumerate(names):
         v = np.array([t[j] for t in th])
-        s = np.array([np.sqrt(max(f.covariance.shared[j, j], 0.0)) for _, f in level_fits])
+        s = np.array([np.sqrt(max(f.covariance.shared[sel[j], sel[j]], 0.0)) for _, f in level_fits])
         w = 1.0 / np.maximum(s, 1e-300) ** 2
         m = float(np.sum(w * v) / np.sum(w))
         c2 = float(np.sum(w * (v - m) ** 2))
@@ -298,29 +315,40 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
         rows = w.rows
         e = rows[:, :p] @ theta - rows[:, p]
         misfit = float(e @ e) / p
+        # calibrated chi-square: the weighted error has covariance W S W^T (S = R^-T V R^-1), whose
+        # eigenvalues give the Satterthwaite scale and degrees of freedom of |e|^2
+        V = f.scores.covariance(theta)
+        A = linalg.solve_triangular(w.R, V, trans="T", check_finite=False)
+        S = w.W @ linalg.solve_triangular(w.R, A.T, trans="T", check_finite=False).T @ w.W.T
+        lam = np.clip(linalg.eigvalsh(0.5 * (S + S.T)), 0.0, None)
+        c, nu = float(np.sum(lam**2) / np.sum(lam)), float(np.sum(lam) ** 2 / np.sum(lam**2))
+        pv = float(stats.chi2.sf(float(e @ e) / c, nu)) if np.isfinite(c) and c > 0 else float("nan")
         R = f.reduced
         yy = float(np.sum(R[: p + 1, p] ** 2))
         rss = float(np.sum((R[:p, :p] @ theta - R[:p, p]) ** 2) + R[p, p] ** 2)
         ef = 1.0 - rss / yy if yy > 0 else float("nan")
-        eh, share, yh, rh = _harmonic_fractions(f, s, theta)
-        out.append(RecordAdequacy(lab, lv, float(f.q_max), misfit, ef, eh, share, energies=(yy, rss, yh, rh)))
-    # outliers within each level: misfit far above the level's median
+        eh, share, yh, rh, nh = _harmonic_fractions(f, s, theta)
+        out.append(RecordAdequacy(lab, lv, float(f.q_max), misfit, ef, eh, share, p_value=pv,
+                                  energies=(yy, rss, yh, rh, nh)))
+    # outliers within each level: a misfit the noise does not explain (calibrated chi-square, Bonferroni
+    # over the records) and far above the level's median (a model wrong everywhere makes no outliers)
+    n = len(out)
     for lv in dict.fromkeys(levels):
         idx = [i for i, x in enumerate(levels) if x == lv]
         med = float(np.median([out[i].misfit for i in idx]))
-        flagged = scale_outliers({i: out[i].misfit for i in idx}, factor=OUTLIER_FACTOR)
-        for i, (ratio, _) in flagged.items():
-            if out[i].misfit > med:
-                r = out[i]
-                out[i] = replace(r, outlier=True, outlier_ratio=ratio)
+        for i in idx:
+            r = out[i]
+            if r.p_value < P_LIMIT / n and r.misfit > OUTLIER_FACTOR * med:
+                out[i] = replace(r, outlier=True, outlier_ratio=r.misfit / med)
     return tuple(out)
 
 
 def _harmonic_fractions(fit, signals, theta):
-    """Explained fraction of the restoring force's harmonics above the first, and their share of it."""
+    """Explained fraction of the restoring force's harmonics above the first, their share of it,
+    and the energies: of these harmonics, of the model's residual there, of the noise alone there."""
     sc = fit.scores
     if sc is None or sc.force_coefficients is None or signals is None:
-        return (float("nan"),) * 4
+        return (float("nan"),) * 5
     alpha = np.asarray(signals.acceleration.coefficients, float)
     y = np.asarray(sc.force_coefficients, float) - alpha
     G = sc.basis_gram
@@ -333,7 +361,9 @@ def _harmonic_fractions(fit, signals, theta):
     total = float(y @ G @ y)
     rh = float(r @ Gh @ r)
     frac = 1.0 - rh / yh if yh > 0 else float("nan")
-    return frac, (float(np.sqrt(yh / total)) if total > 0 else float("nan")), yh, rh
+    # what the white noise of both channels alone leaves there: cov of y's coefficients (sF^2 + sa^2) G^-1
+    noise = (sc.sigma_force**2 + sc.sigma_accel**2) * float(np.trace(Gh @ np.linalg.inv(G)[np.ix_(hi, hi)]))
+    return frac, (float(np.sqrt(yh / total)) if total > 0 else float("nan")), yh, rh, noise
 
 
 def _drift(fits, levels, labels):
@@ -373,7 +403,10 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     level_fits : sequence of (level, PooledFit)
         The pooled fit of each force level.
     """
-    eq, chi2, dof, p = level_equality(level_fits)
+    constant = None
+    if model is not None:  # coefficients with an amplitude law may differ between levels
+        constant = [c for c, L in zip(model.coefficient_names, model.law_orders) if L == 0]
+    eq, chi2, dof, p = level_equality(level_fits, constant)
     terms = tuple(model.terms) if model is not None else tuple(level_fits[0][1].terms) if level_fits else ()
     name = model_name(terms) if terms else "?"
     msgs, adequate = [], True

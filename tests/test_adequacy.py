@@ -1,0 +1,93 @@
+"""Model-adequacy checks: a model that holds passes, a wrong one is flagged with the reason."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from jointid.errors import IdentificationError
+from jointid.identify.adequacy import P_LIMIT, check_adequacy, level_equality
+from jointid.signal.harmonics import steady_state_signals
+
+from test_selection import TRUTH, campaign
+
+
+def _check(sigs, lev, terms="q - q^3 + q'", **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return check_adequacy(sigs, lev, terms, **kw)
+
+
+def test_cubic_model_holds_on_cubic_data():
+    sigs, lev = campaign(TRUTH["cubic"], 31, 0.01, n_frequencies=7)
+    a = _check(sigs, lev, labels=list(range(len(sigs))), preload="sim")
+    assert a.adequate, a.report()
+    assert a.joint_dof == 4 and a.joint_p > P_LIMIT
+    assert [e.name for e in a.equality] == ["omega1^2", "k3"]
+    assert 0.2 < np.median([r.misfit for r in a.records]) < 2.0  # explained to the noise
+    d = json.loads(json.dumps(a.summary()))
+    # the restoring force is explained; its harmonics above the first to the noise
+    assert d["explained_force"] > 0.9999 and 0.0 < d["explained_harmonics"] < 1.0
+    assert 0.5 < d["harmonic_residual_to_noise"] < 2.0
+    assert d["outliers"] == [] and "holds" in d["verdict"]
+    assert "holds" in a.report()
+
+
+def test_cubic_model_flagged_on_amplitude_dependent_stiffness():
+    """A microslip-like joint (omega^2 falling with q_max) fitted as a cubic spring: k3 differs across levels."""
+    sigs, lev = campaign(TRUTH["amplitude-dependent stiffness"], 32, 0.005, n_frequencies=7)
+    a = _check(sigs, lev)
+    assert not a.adequate
+    k3 = next(e for e in a.equality if e.name == "k3")
+    assert k3.differs and k3.p_value < 1e-6 and k3.ratio > 1.1
+    assert "k3 changes" in a.verdict and "the cubic model does not hold at this preload" in a.verdict
+    assert np.median([r.misfit for r in a.records]) > 10 and a.harmonic_residual_to_noise > 10
+    # the selected family passes the same checks
+    good = _check(sigs, lev, "q + q'", amplitude_laws={"q": 2, "q'": 2})
+    assert good.adequate, good.report()
+
+
+def test_outlier_record_found():
+    """A record of another structure (omega1^2 0.04 % higher) among a level is the one outlier."""
+    sigs, lev = campaign(TRUTH["cubic"], 33, 0.005, n_frequencies=9)
+    from jointid.simulate.hbm import frequency_response
+    from jointid.simulate.model import SingleModeModel
+    from jointid.simulate.synth import synthesize_record
+
+    other = SingleModeModel("q - q^3 + q'", (1.0004 * 170.0**2, 5e6, 0.0), {"q'": (0.08, 70.0, 1e4)})
+    s = frequency_response(other, 1.0, [171.0], n_harmonics=9, stability=False).states[0]
+    t, Q, acc = synthesize_record(s, 2000.0, 20 * 2 * np.pi / s.omega, noise=0.005, rng=1)
+    k = lev.index(1.0) + 5
+    sigs[k] = steady_state_signals(t, Q, acc, frequency_hz=s.omega / (2 * np.pi), n_harmonics=5,
+                                   refine_frequency=False)
+    a = _check(sigs, lev, labels=[f"r{i}" for i in range(len(sigs))])
+    assert a.outliers == (f"r{k}",), a.report()
+    assert "far off the model" in " ".join(a.messages)
+
+
+def test_level_equality_closed_form():
+    """Two levels with known covariances: chi2 and p as computed by hand."""
+    from types import SimpleNamespace
+
+    def fit(v, s):
+        return SimpleNamespace(shared_names=("omega1^2", "k3"), shared=np.array(v),
+                               covariance=SimpleNamespace(shared=np.diag(np.square(s))))
+
+    eq, chi2, dof, p = level_equality([(1, fit([1.0, 2.0], [0.1, 0.5])), (2, fit([1.3, 2.0], [0.1, 0.5]))])
+    assert dof == 2 and chi2 == pytest.approx(0.3**2 / 0.02)
+    assert eq[0].chi2 == pytest.approx(4.5) and eq[1].chi2 == pytest.approx(0.0)
+    assert eq[0].ratio == pytest.approx(1.3) and "changes by 30 %" in eq[0].describe()
+    assert level_equality([(1, fit([1.0, 2.0], [0.1, 0.5]))])[2] == 0
+
+
+def test_adequacy_input_errors():
+    sigs, lev = campaign(TRUTH["cubic"], 34, 0.01, levels=(1.0, 2.0), n_frequencies=4)
+    with pytest.raises(IdentificationError, match="force levels given"):
+        check_adequacy(sigs, lev[:-1])
+
+
+def test_adequacy_plot():
+    sigs, lev = campaign(TRUTH["cubic"], 35, 0.01, n_frequencies=5)
+    ax = _check(sigs, lev).plot()
+    assert len(ax.get_legend().get_texts()) == 2
