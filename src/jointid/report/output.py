@@ -24,6 +24,7 @@ import numpy as np
 
 from ..identify.hysteresis import hysteresis_loop
 from ..io.results import MARKER, atomic_write, check_output_folder, write_csv, write_json
+from .formatting import format_pm, format_value, unit_of
 from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
 from .tables import group_rows, record_rows
@@ -177,39 +178,124 @@ def _write_set(result, out, run_id, figures, html) -> dict:
     if html:
         paths["html"] = out / "report.html"
         n_flagged = len(flagged_lines(result)[1:])
-        write_html(paths["html"], f"jointid: {result.name}", campaign_sections(result, figs),
-                   intro=f"{len(result.records)} records, {len(result.failed)} failed, {n_flagged} flagged. "
-                         f"Run id {run_id}.")
+        from .html import page_meta
+
+        write_html(paths["html"], f"jointid: {result.name}", campaign_sections(result, figs, summary),
+                   intro=f"{len(result.records)} records, {len(result.failed)} failed, {n_flagged} flagged.",
+                   meta=page_meta(run_id))
     return paths
 
 
-def campaign_sections(result, figs) -> list:
-    """HTML sections of a campaign result: groups, laws, figures, failures."""
-    groups = Section("Groups", ["Pooled regression over the records of each (preload, force level): shared omega1 "
-                                "and k3, one damping coefficient per record; band averages of single-record fits."])
-    groups.tables.append(("groups", group_rows(result), None))
-    laws = Section("Damping laws and power laws")
-    laws.tables.append(("c(q_max)", [{"preload": p, "law": l.report() if l else result.damping_law_errors.get(p)}
-                                     for p, l in result.damping_laws.items()], None))
-    laws.tables.append(("U = alpha F^n", [{"preload": g.preload, "force level": g.force_level,
-                                           "alpha": g.power_law.alpha if g.power_law else None,
-                                           "n": g.power_law.n if g.power_law else None,
-                                           "n in [2, 3]": g.power_law.within_bounds if g.power_law else None}
-                                          for g in result.groups], None))
+def _law_rows(summary) -> list:
+    rows = []
+    for d in summary.get("damping_law") or []:
+        coef, se = d.get("coefficients"), d.get("stderr") or []
+        if coef is None:
+            rows.append({"preload": str(d.get("preload")), "coefficient": "–", "value ± standard error": "not fitted",
+                         "unit": "", "fit": str(d.get("error") or "")})
+            continue
+        fit = (f"chi²/dof {format_value(d.get('chi2_dof'), 3)}, p = {format_value(d.get('p_value'), 2)}, "
+               f"{d.get('n_records', '?')} records") if d.get("chi2_dof") is not None else ""
+        for k, v in enumerate(coef):
+            rows.append({"preload": str(d.get("preload")), "coefficient": f"c{k}",
+                         "value ± standard error": format_pm(v, se[k] if k < len(se) else None),
+                         "unit": unit_of(f"c{k}"), "fit": fit if k == 0 else ""})
+    return rows
+
+
+def _power_rows(summary) -> list:
+    rows = []
+    for d in summary.get("power_law") or []:
+        rows.append({"preload": str(d.get("preload")), "F [N]": format_value(d.get("force_level")),
+                     "alpha": format_value(d.get("alpha"), 4),
+                     "n ± standard error": format_pm(d.get("n"), d.get("n_stderr")) if d.get("n") is not None
+                     else str(d.get("error") or "–"),
+                     "n within [2, 3]": d.get("within_2_3")})
+    return rows
+
+
+def _reprediction_table(summary) -> list:
+    rows = []
+    loops = {(str(x.get("preload")), str(x.get("force_level"))): x for x in (summary.get("reprediction") or {}).get("loops", [])}
+    for d in (summary.get("reprediction") or {}).get("groups", []):
+        key = (str(d.get("preload")), str(d.get("force_level")))
+        loop = loops.get(key, {})
+
+        def pct(v, digits=2):
+            return "–" if v is None else f"{v:+.{digits}f} %"
+
+        rows.append({
+            "preload": key[0], "F": format_value(d.get("force_level")),
+            "peak frequency error": pct(d.get("peak_frequency_error_percent"), 3),
+            "peak magnitude error": pct(d.get("peak_amplitude_error_percent")),
+            "rms error at the measured dwells": "–" if d.get("point_rms_error_percent") is None
+            else f"{d['point_rms_error_percent']:.2f} %",
+            "loop rms difference (filtered)": "–" if (loop.get("filtered") or {}).get("rms_difference") is None
+            else f"{100 * loop['filtered']['rms_difference']:.1f} %",
+            "peak resolved by the dwells": d.get("peak_resolved"),
+        })
+    return rows
+
+
+def campaign_sections(result, figs, summary=None) -> list:
+    """HTML sections of a campaign result: the summary first (model per preload with 95 %
+    intervals, the paper's Table 5 with the band average flagged, damping law, verdicts), then
+    the re-prediction errors, figures, warnings and flagged records, records, and an appendix."""
+    from .reprediction_plots import reprediction_rows
+    from .summary import adequacy_rows, error_lines, model_rows, table5_rows, warning_rows
+
+    summary = result.summary() if summary is None else summary
+    s = summary.get("settings") or {}
+    head = Section("Summary", [
+        f"{summary.get('n_records', len(result.records))} records, {summary.get('n_failed', len(result.failed))} failed, "
+        f"{len(summary.get('flagged') or [])} flagged by the plausibility checks. Model terms: "
+        f"{' + '.join(s.get('terms') or [])}; {s.get('n_harmonics', '?')} harmonics; damping law order "
+        f"{s.get('damping_order', '?')}. Modal quantities of the mass-normalised first mode in the seed paper's units; "
+        "values are rounded to two significant digits of their standard error."])
+    head.tables.append(("Identified model per preload: one regression over all its records, damping law inside "
+                        "(value ± standard error, 95 % interval)", model_rows(summary), None))
+    head.tables.append(("The paper's Table 5 per force level: pooled fit (shared omega1 and k3, one c per record) and "
+                        "the band average of single-record k3 (the paper's number), flagged where unresolved",
+                        table5_rows(summary), None))
+    head.tables.append(("Damping law c(q_max) = c0 + c1 q_max + c2 q_max² (the paper's two-step method, Table 2)",
+                        _law_rows(summary), None))
+    verdicts = adequacy_rows(summary)
+    if verdicts:
+        head.tables.append(("Model adequacy and selection", verdicts, None))
+    else:
+        head.paragraphs.append("No model adequacy verdict in these results.")
+    laws = Section("Energy per cycle", ["U = alpha F^n over each group's records (seed Figs 15, 16); U in J, F in N."])
+    laws.tables.append(("U = alpha F^n", _power_rows(summary), None))
+    repred = Section("Identified vs measured", [
+        "Each group's identified model solved by harmonic balance at the group's forcing, against the measured "
+        "dwells: peak frequency and magnitude errors, rms error at the measured points, and the rms difference "
+        "between measured and identified hysteresis loops (relative to the measured loop's rms)."])
+    repred.tables.append(("re-prediction errors", _reprediction_table(summary), None))
     figures = Section("Figures", figures=[(caption, fig) for _, caption, fig in figs])
-    flagged = flagged_lines(result)
-    records = Section("Records", flagged if flagged else [])
+    notes = Section("Warnings and flagged records")
+    notes.paragraphs += flagged_lines(result) or ["No record flagged by the plausibility checks."]
+    errs = error_lines(summary)
+    notes.paragraphs += (["Failed records:"] + errs) if errs else ["No record failed."]
+    wrows = warning_rows(summary)
+    if wrows:
+        notes.tables.append(("warnings per group (kind and number of records; every message is in results.json)",
+                             wrows, None))
+    for m in summary.get("models") or []:
+        for w in m.get("warnings") or []:
+            notes.paragraphs.append(f"preload {m.get('preload')} model: {w}")
+    records = Section("Records")
     records.tables.append(("records", record_rows(result), ["index", "file", "preload", "force_level", "frequency_hz",
                                                              "status", "q_max", "omega1", "k3", "c", "c_pooled",
                                                              "error"]))
-    from .reprediction_plots import reprediction_rows
-
-    repred = Section("Re-prediction", ["Each group's identified model solved by harmonic balance at the group's "
-                                       "forcing, against the measured dwells: peak frequency and magnitude errors, "
-                                       "rms error at the measured points, and the rms difference between measured "
-                                       "and identified hysteresis loops."])
-    repred.tables.append(("re-predicted FRFs", reprediction_rows(result), None))
-    return [groups, laws, repred, figures, records]
+    appendix = Section("Appendix: settings and checks")
+    appendix.tables.append(("settings", [{"setting": k, "value": v if isinstance(v, (int, float, str)) or v is None
+                                          else str(v)} for k, v in s.items()], None))
+    appendix.tables.append(("groups (all numbers)", group_rows(result), None))
+    appendix.tables.append(("re-predicted FRFs (all numbers)", reprediction_rows(result), None))
+    delay = summary.get("channel_delay") or {}
+    if delay.get("delay_s") is not None or delay.get("error"):
+        appendix.paragraphs.append(f"channel delay: {delay}")
+    return [head, laws, repred, figures, notes, records, appendix]
 
 
 #: Most figures drawn for one campaign (a campaign of many groups would otherwise spend
