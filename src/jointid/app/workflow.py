@@ -246,7 +246,7 @@ def _c_covariance(groups, members_of, idx):
         qv += list(pf.covariance.q_max_variance[sel])
         cq += list(pf.covariance.own_q_max[sel, jc])
         order += [members[j] for j in sel]
-    if sorted(order) != sorted(idx):
+    if not parts or sorted(order) != sorted(idx):  # no usable record: no covariance to build
         return {}
     C = LowRankCovariance.stack(parts)
     pos = [order.index(i) for i in idx]
