@@ -104,7 +104,7 @@ def campaign_report(result) -> str:
         format_table(
             group_rows(result),
             ["preload", "force_level", "n_records", "f1_hz", "k3", "k3_stderr", "f1_hz_mean", "k3_mean", "n"],
-            ["preload", "F", "records", "f1 [Hz]", "k3", "se(k3)", "f1 mean", "k3 mean", "n (U~F^n)"],
+            ["preload", "F", "records", "f1 [Hz]", "k3 [N/m^3]", "se(k3)", "f1 band avg", "k3 band avg*", "n (U~F^n)"],
         )
     )
     for g in result.groups:
@@ -145,7 +145,9 @@ def campaign_report(result) -> str:
                        f"identified rms difference {100 * d['rms_difference']:.1f} % (filtered)")
     if result.failed:
         out.append("")
-        out.append("Failed records:")
-        for r in result.failed:
-            out.append(f"  {r.error}")
+        out.append(f"Failed records ({len(result.failed)}; each error in results.json):")
+        from .summary import group_messages
+
+        for kind, n, example in group_messages(r.error for r in result.failed):  # one line per kind of error
+            out.append(f"  {example}" if n == 1 else f"  {n} records: {kind} (e.g. {example})")
     return "\n".join(out)
