@@ -129,7 +129,7 @@ def test_warnings_per_group_and_errors_grouped_with_counts():
     assert w["records"] == 20 and w["warning"] == "k3 not resolved by the data"
     (e,) = error_lines(s)
     assert e.startswith("7 records: missing column 'force'")
-    text = "\n".join(console_lines(s))
+    text = "\n".join(console_lines(s) + error_lines(s))
     assert sum("missing column" in line for line in text.splitlines()) == 1  # 7 failures, one line
     assert "20 x k3 not resolved" in text
     assert "band average" in text and "unresolved" in text

@@ -227,9 +227,9 @@ def summary_lines(summary) -> list:
 
 
 def console_lines(summary) -> list:
-    """What the console adds below the text report: the band averages (the paper's Table 5
-    numbers) with their resolution, the warnings per group with counts, the failed records
-    grouped by kind of error."""
+    """What the console adds below the text report (which lists the failed records by kind of
+    error): the band averages (the paper's Table 5 numbers) with their resolution and the
+    warnings per group with counts."""
     out = []
     bands = [(g, band_resolution(summary, g)) for g in summary.get("groups") or [] if g.get("k3_mean") is not None]
     bands = [(g, b) for g, b in bands if b]
@@ -243,7 +243,6 @@ def console_lines(summary) -> list:
     if w:
         out.append("Warnings per group (every message is in results.json):")
         out += [f"  preload {r['preload']}, F {r['F']}: {r['records']} x {r['warning']}" for r in w]
-    out += [f"Failed: {e}" for e in error_lines(summary)]
     for m in summary.get("models") or []:
         out += [f"preload {m.get('preload')} model: {w_}" for w_ in m.get("warnings") or []]
     return out
