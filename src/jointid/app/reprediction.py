@@ -219,7 +219,7 @@ def _solve(model, forcing, omegas, n_harmonics):
 
 
 def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, forcing=None, scale: float = 1.0,
-                    measured=None, exact=None, quantity=None, span=None) -> Reprediction | None:
+                    measured=None, exact=None, quantity=None, span=None, model=None) -> Reprediction | None:
     """Re-predict one group's nonlinear FRF with its identified model.
 
     Parameters
@@ -245,13 +245,16 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
         Label of the magnitude.
     span : (f_lo, f_hi), optional
         Frequency band of the curve [Hz]; default the measured (or exact) points' span.
+    model : SingleModeModel, optional
+        The model to solve instead of :func:`identified_model` (e.g. a selected model fitted
+        without this group's records, :mod:`jointid.identify.selection`).
 
     Returns
     -------
     Reprediction or None
         ``None`` when the group has no identified model.
     """
-    model = identified_model(result, group)
+    model = identified_model(result, group) if model is None else model
     members = _group_members(result, group)
     if model is None or not members:
         return None

@@ -104,12 +104,16 @@ class CampaignResult:
     repredictions: tuple = ()  # Reprediction per group (jointid.app.reprediction)
     loops: tuple = ()  # measured vs identified hysteresis loop errors per group
     structures: dict = field(default_factory=dict)  # preload -> Structure (physical campaigns; Table 4)
-    models: dict = field(default_factory=dict)  # PreloadModel per preload (one regression over its records)
-    model_errors: dict = field(default_factory=dict)
-    backbones: object = None  # CampaignBackbones (jointid.app.backbones): omega(a), zeta(a), joint laws
     channel_delay: object = None  # ChannelDelay applied to every record (jointid.identify.delay)
     channel_delay_error: str | None = None
     broadband: tuple = ()  # BroadbandGroup per group of multisine / random records (jointid.app.broadband_records)
+    models: dict = field(default_factory=dict)  # PreloadModel per preload (one regression over its records)
+    model_errors: dict = field(default_factory=dict)
+    backbones: object = None  # CampaignBackbones (jointid.app.backbones): omega(a), zeta(a), joint laws
+    adequacy: dict = field(default_factory=dict)  # AdequacyResult per preload (jointid.identify.adequacy)
+    adequacy_errors: dict = field(default_factory=dict)
+    selections: dict = field(default_factory=dict)  # SelectionResult per preload (terms="auto")
+    selection_errors: dict = field(default_factory=dict)
 
     @property
     def failed(self):
@@ -146,21 +150,27 @@ class CampaignResult:
                  **(g.power_law.summary() if g.power_law else {"alpha": None, "n": None, "error": g.power_law_error})}
                 for g in self.groups
             ],
-            "n_records": len(self.records),
             "models": [
                 self.models[p].summary() if self.models.get(p) is not None
                 else {"preload": p, "omega1": None, "error": self.model_errors.get(p)}
                 for p in sorted(set(self.models) | set(self.model_errors), key=_group_key)
             ],
+            "n_records": len(self.records),
             "n_failed": len(self.failed),
-            "flagged": [{"index": r.spec.index, "file": r.spec.file, "flags": [f.name for f in r.flags],
-                         "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
-            "backbones": None if self.backbones is None else self.backbones.summary(),
             "reprediction": {"groups": [r.summary() for r in self.repredictions], "loops": list(self.loops)},
             "structures": [{"preload": p, **s.summary()} for p, s in self.structures.items()],
             "channel_delay": (self.channel_delay.summary() if self.channel_delay is not None
                               else {"delay_s": None, "error": self.channel_delay_error}),
             "broadband": [b.summary() for b in self.broadband],
+            "flagged": [{"index": r.spec.index, "file": r.spec.file, "flags": [f.name for f in r.flags],
+                         "in_pooled_fits": self.settings.keep_flagged} for r in self.flagged],
+            "backbones": None if self.backbones is None else self.backbones.summary(),
+            "adequacy": [self.adequacy[p].summary() if self.adequacy.get(p) is not None
+                         else {"preload": p, "adequate": None, "error": self.adequacy_errors.get(p)}
+                         for p in sorted(set(self.adequacy) | set(self.adequacy_errors), key=_group_key)],
+            "selection": [self.selections[p].summary() if self.selections.get(p) is not None
+                          else {"preload": p, "selected": None, "error": self.selection_errors.get(p)}
+                          for p in sorted(set(self.selections) | set(self.selection_errors), key=_group_key)],
         }
 
     def report(self) -> str:
@@ -311,6 +321,10 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         settings = replace(settings, **kw)
     if not isinstance(campaign, Campaign):
         campaign = load_campaign(campaign)
+    from .model_checks import campaign_adequacy, identify_auto, is_auto
+
+    if is_auto(settings.terms):  # the model chosen by the data (jointid.identify.selection)
+        return identify_auto(campaign, settings)
     library(settings.terms)  # fail early on unknown terms
     to_modal, structures = None, {}
     if campaign.coordinates == "physical":
@@ -454,8 +468,6 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
                 perr = perr or f"preload {g.preload}, force level {g.force_level}: {exc}"
         final_groups.append(replace(g, power_law=power, power_law_error=perr))
 
-
-
     summary_warning(notes, len(outcomes), stacklevel=3)  # 3: past the single-threaded wrapper
     result = CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors,
@@ -463,6 +475,11 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     )
     result = replace(result, structures=structures, channel_delay=delay, channel_delay_error=delay_error,
                      broadband=identify_broadband(broadband_specs, settings))
+    adequacy, adequacy_errors = campaign_adequacy(result)
+    result = replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
+    for a in adequacy.values():
+        if a is not None and not a.adequate:
+            warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=3)
     if settings.repredict:
         from .reprediction import loop_errors, repredict_campaign
 

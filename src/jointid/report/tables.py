@@ -98,6 +98,21 @@ def campaign_report(result) -> str:
             out.append("  " + (m.report().replace("\n", "\n  ") if m is not None
                                else result.model_errors.get(p, "-")))
         out.append("")
+    sels = getattr(result, "selections", None) or {}
+    if sels or getattr(result, "selection_errors", None):
+        out.append("Model selection per preload (--terms auto; * selected: the simplest model within noise of the best):")
+        for p, sel in sels.items():
+            out.append("  " + (sel.report().replace("\n", "\n  ") if sel is not None
+                               else result.selection_errors.get(p, "-")))
+        out.append("")
+    adq = getattr(result, "adequacy", None) or {}
+    if adq:
+        out.append("Model adequacy per preload (equality of the shared parameters across force levels, records "
+                   "against the preload model, explained fractions):")
+        for p, a in adq.items():
+            out.append("  " + (a.report().replace("\n", "\n  ") if a is not None
+                               else result.adequacy_errors.get(p, "-")))
+        out.append("")
     out.append("Groups (the paper's method, Table 5): pooled regression per force level (shared omega1, k3; "
                "one c per record) and band average")
     out.append(
