@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import JointidError, ManifestError, RecordError, RecordFileNotFoundError, where
+from ..errors import JointidError, ManifestError, RecordError, where
 from .campaign import (
     COORDINATES,
     CSV_TIME_RTOL,
@@ -64,6 +64,7 @@ from .campaign import (
     _label,
     _number,
     check_keys,
+    check_regular_file,
     read_toml,
     write_campaign,
     write_csv_record,
@@ -145,8 +146,7 @@ def read_source(path: Path, channels: dict, fs=None, time=None) -> Channels:
     ``time`` names a CSV time column (default ``"time"``) or an HDF5 time dataset; without
     one, ``fs`` gives the sampling rate.
     """
-    if not path.is_file():
-        raise RecordFileNotFoundError(f"{path}: source file not found")
+    check_regular_file(path, "source file")  # a folder or device is said to be one, not "not found"
     suffix = path.suffix.lower()
     if suffix == ".mat":
         from .matlab import read_mat
