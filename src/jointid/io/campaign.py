@@ -384,7 +384,7 @@ def _read_csv(path: Path, spec: RecordSpec):
         with warnings.catch_warnings():  # no data rows: reported below as too few samples
             warnings.simplefilter("ignore", UserWarning)
             rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, encoding="utf-8")
-    except UnicodeDecodeError as exc:
+    except UnicodeDecodeError:
         raise RecordError(f"{where(spec.file, spec.index)}record file must be UTF-8 text; it holds bytes that are "
                           f"not (another encoding or binary data); save it as UTF-8") from None
     except ValueError as exc:
