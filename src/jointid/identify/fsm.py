@@ -73,7 +73,18 @@ def _omega1(value):
 
 def _ci_text(value, stderr) -> str:
     ci = ci95(value, stderr)
-    return "" if ci is None else f", 95 % [{ci[0]:.8g}, {ci[1]:.8g}]"
+    if ci is None:
+        return ""
+    from ..report.formatting import format_ci  # rounded like the value (two digits of the standard error)
+
+    return f", 95 % {format_ci(ci, stderr)}"
+
+
+def _pm(value, stderr) -> str:
+    """``value ± stderr`` rounded to two significant digits of the standard error."""
+    from ..report.formatting import format_pm
+
+    return format_pm(value, stderr)
 
 
 def record_whitenings(fits, weighting) -> list:
@@ -441,10 +452,11 @@ class PooledFit:
             f"(condition number {self.condition_number:.3g})"
         ]
         for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr):
-            lines.append(f"  {n:>10} = {v:.8g} ± {s:.2g}   (shared){_ci_text(v, s)}")
+            lines.append(f"  {n:>10} = {_pm(v, s)}   (shared){_ci_text(v, s)}")
         if np.isfinite(self.omega1):
-            lines.append(f"  {'omega1':>10} = {self.omega1:.8g} ± {self.omega1_stderr:.2g} rad/s = "
-                         f"{self.omega1 / (2 * np.pi):.8g} Hz{_ci_text(self.omega1, self.omega1_stderr)}")
+            lines.append(f"  {'omega1':>10} = {_pm(self.omega1, self.omega1_stderr)} rad/s = "
+                         f"{_pm(self.omega1 / (2 * np.pi), self.omega1_stderr / (2 * np.pi))} Hz"
+                         f"{_ci_text(self.omega1, self.omega1_stderr)}")
         for i, n in enumerate(self.own_names):
             lines.append(
                 f"  {n:>10} per record: {np.min(self.own[:, i]):.4g} .. {np.max(self.own[:, i]):.4g} "
