@@ -22,7 +22,7 @@ import numpy as np
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
-from .fsm import COND_LIMIT, _check_terms, _ci_text, own_fits, pooled_inputs, record_whitenings
+from .fsm import COND_LIMIT, _check_terms, _ci_text, _pm, own_fits, pooled_inputs, record_whitenings
 from .regression import lstsq_from_reduced
 from .terms import library
 from .uncertainty import ci95, sandwich
@@ -219,9 +219,9 @@ class PreloadModel:
             + (f"; laws in q_max: {', '.join(f'{c} order {L}' for c, L in laws.items())})" if laws else ")")
         ]
         for n, v, s in zip(self.parameter_names, self.parameters, self.stderr):
-            lines.append(f"  {n:>12} = {v:.8g} ± {s:.2g}{_ci_text(v, s)}")
+            lines.append(f"  {n:>12} = {_pm(v, s)}{_ci_text(v, s)}")
         if np.isfinite(self.omega1):
-            lines.append(f"  {'omega1':>12} = {self.omega1:.8g} ± {self.omega1_stderr:.2g} rad/s"
+            lines.append(f"  {'omega1':>12} = {_pm(self.omega1, self.omega1_stderr)} rad/s"
                          f"{_ci_text(self.omega1, self.omega1_stderr)}")
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
