@@ -84,8 +84,10 @@ class DampingLaw:
         }
 
     def report(self) -> str:
+        from ..report.formatting import format_pm  # two significant digits of each standard error
+
         terms = " + ".join(
-            f"({c:.6g} ± {s:.2g})" + ("" if k == 0 else " q_max" if k == 1 else f" q_max^{k}")
+            f"({format_pm(c, s)})" + ("" if k == 0 else " q_max" if k == 1 else f" q_max^{k}")
             for k, (c, s) in enumerate(zip(self.coefficients, self.stderr))
         )
         fit = (f"; chi^2/dof {self.chi2 / self.dof:.3g}, p = {self.p_value:.3g}"
