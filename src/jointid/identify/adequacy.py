@@ -11,7 +11,8 @@ Three checks, each with the calibrated covariances of :mod:`jointid.identify.unc
 * **per-record residual against the preload model**: each record's weighted misfit
   ``|W_r (z_r - R_r theta_r)|^2 / p`` in its reduced space (about 1 when the model explains
   the record to the noise, with a calibrated p-value); a record beyond the noise
-  (``p < P_LIMIT / n_records``) and far above its level's median is an outlier, and a trend of the records' own
+  (``p < P_LIMIT / n_records``) and far above the median of a level the model explains to
+  the noise (median misfit at most 3) is an outlier, and a trend of the records' own
   ``omega1`` with the acquisition order (beside ``q_max``) is a drift;
 * **explained fractions**: of the restoring force ``Q - q''`` (energy), and of its
   harmonics above the first (where the nonlinear terms show).
@@ -38,6 +39,8 @@ __all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equal
 P_LIMIT = 1e-3
 #: A record whose misfit is this many times its level's median (and beyond the noise) is an outlier.
 OUTLIER_FACTOR = 5.0
+#: Outliers are only sought in a level whose median misfit is at most this (explained to the noise).
+OUTLIER_MEDIAN_LIMIT = 3.0
 #: |t| of the order trend of the own omega1 above which a group drifts.
 DRIFT_T = 5.0
 
@@ -331,11 +334,14 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
         out.append(RecordAdequacy(lab, lv, float(f.q_max), misfit, ef, eh, share, p_value=pv,
                                   energies=(yy, rss, yh, rh, nh)))
     # outliers within each level: a misfit the noise does not explain (calibrated chi-square, Bonferroni
-    # over the records) and far above the level's median (a model wrong everywhere makes no outliers)
+    # over the records), far above the level's median, in a level the model explains to the noise
+    # (where the model fails everywhere, the worst records are its failures, not bad records)
     n = len(out)
     for lv in dict.fromkeys(levels):
         idx = [i for i, x in enumerate(levels) if x == lv]
         med = float(np.median([out[i].misfit for i in idx]))
+        if not med <= OUTLIER_MEDIAN_LIMIT:
+            continue
         for i in idx:
             r = out[i]
             if r.p_value < P_LIMIT / n and r.misfit > OUTLIER_FACTOR * med:
