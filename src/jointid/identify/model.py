@@ -301,16 +301,20 @@ class PreloadForceStateMapping:
                 f"{context}an amplitude law of order {max(orders)} needs at least {max(orders) + 1} records, got {len(sigs)}"
             )
         fits = own_fits(lib, sigs, fits, self.filtered)
-        wh = record_whitenings(fits, self.weighting)
-        weights = np.array([w.scalar for w in wh])
         p = len(lib)
         q_max = np.array([f.q_max for f in fits])
         Es = [_expansion(orders, q) for q in q_max]
-        rows = [w.rows for w in wh]
-        A = np.vstack([r[:, :p] @ E for r, (E, _) in zip(rows, Es)])
-        b = np.concatenate([r[:, p] for r in rows])
         n_total = int(sum(f.n_samples for f in fits))
-        res = lstsq_from_reduced(A, b, n_total)
+
+        def solve(wh):
+            rows = [w.rows for w in wh]
+            A = np.vstack([r[:, :p] @ E for r, (E, _) in zip(rows, Es)])
+            b = np.concatenate([r[:, p] for r in rows])
+            return A, lstsq_from_reduced(A, b, n_total)
+
+        wh = record_whitenings(fits, self.weighting)
+        A, res = solve(wh)
+        weights = np.array([w.scalar for w in wh])
         theta = res.coefficients
         M = A.T @ A
         V = np.zeros((P, P))

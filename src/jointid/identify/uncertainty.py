@@ -148,6 +148,8 @@ class RecordScores:
     filtered: bool = True
     force_coefficients: np.ndarray | None = field(default=None, repr=False)  # harmonic fit of the force
     inertia: bool = False  # column 0 is the filtered acceleration with coefficient m (unknown force gain)
+    omega_variance: float = 0.0  # of the excitation frequency when it was estimated from the force
+    omega_score: np.ndarray | None = field(default=None, repr=False)  # d(score)/d(omega) in term columns
 
     def score_terms(self, theta, dtheta_dqmax=None) -> np.ndarray:
         """``X^T D`` (``(p, m)``) in the record's term columns for coefficients ``theta``.
@@ -173,6 +175,8 @@ class RecordScores:
         if not self.filtered:  # the raw acceleration noise also enters y directly
             P = self.phi_b @ Gi @ S.T
             V = V + sa2 * (self.gram - P - P.T)
+        if self.omega_score is not None and self.omega_variance > 0:  # the frequency estimate's own error
+            V = V + self.omega_variance * np.outer(self.omega_score, self.omega_score)
         return 0.5 * (V + V.T)
 
     def q_max_variance(self) -> float:
@@ -208,6 +212,8 @@ def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> R
     dq_b = np.zeros((p, p, m))
     dv_b = np.zeros((p, p, m))
     G = np.zeros((m, m))
+    G1 = np.zeros((m, m))  # sum of tau B^T B and tau^2 B^T B: information of the frequency in the force
+    G2 = np.zeros((m, m))
     bF = np.zeros(m)
     FF = 0.0
     for sl, q, v, a_fit in signals.blocks():
@@ -221,6 +227,10 @@ def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> R
             dq_b[off + k] += (Phi * gq[:, None]).T @ B
             dv_b[off + k] += (Phi * gv[:, None]).T @ B
         G += B.T @ B
+        tau = signals.t[sl] - acc.t0
+        Bt = B * tau[:, None]
+        G1 += Bt.T @ B
+        G2 += Bt.T @ Bt
         bF += B.T @ Q
         FF += float(Q @ Q)
     n = signals.t.size
@@ -232,10 +242,17 @@ def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> R
         coef_F, rss_F = np.full(m, np.nan), float("nan")
     Tv = _integration_map(omega, H)
     Tq = Tv @ Tv
+    var_w = 0.0
+    if not signals.frequency_given and np.all(np.isfinite(coef_F)):
+        # d F / d omega = tau F'(tau) / omega; the force's coefficients are estimated with it
+        d = HarmonicSeries(omega, coef_F).derivative().coefficients / omega
+        u = G1 @ d
+        info = float(d @ G2 @ d - u @ linalg.solve(G, u, assume_a="pos"))
+        var_w = (rss_F / dof) / info if info > 0 else 0.0
     return RecordScores(
         gram, phi_b, dq_b, dv_b, G, Tq, Tv, _peak_direction(signals.displacement.coefficients, Tq),
         float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n),
-        bool(filtered or inertia), coef_F, bool(inertia),
+        bool(filtered or inertia), coef_F, bool(inertia), float(var_w),
     )
 
 
