@@ -178,3 +178,23 @@ def test_generating_family_selected_in_90_percent_of_50_campaigns(family):
     print(f"{family}: {hits}/50 selected")
     assert hits >= 45
     assert not spurious
+
+
+def test_silverbox_multilevel_selection():
+    """Measured data (docs/public-data.md): the quadratic + cubic model is selected at every level left out."""
+    from jointid.app.model_checks import silverbox_multilevel_selection
+    from jointid.errors import RecordFileNotFoundError
+    from jointid.io.datasets import shared_data_dir
+
+    try:
+        root = shared_data_dir()
+    except RecordFileNotFoundError as exc:
+        pytest.skip(f"shared data folder absent: {exc}")
+    if not (root / "silverbox_multilevel_noel" / "SNJP_um_full_FNSI_150.mat").exists():
+        pytest.skip("Silverbox multilevel data absent")
+    sel = silverbox_multilevel_selection()
+    assert sel.selected == "quadratic + cubic", sel.report()
+    best, cubic = sel.score("quadratic + cubic"), sel.score("cubic")
+    assert best.cv_force < cubic.cv_force / 3 and best.bic < cubic.bic - 1e4
+    k3 = best.parameters[best.parameter_names.index("k3")]
+    assert k3 < 0  # hardening (seed sign convention)

@@ -20,7 +20,7 @@ from dataclasses import replace
 from ..errors import IdentificationError, JointidWarning
 from ..identify.terms import SEED_TERMS, library
 
-__all__ = ["AUTO", "is_auto", "campaign_adequacy", "campaign_selection", "identify_auto"]
+__all__ = ["AUTO", "is_auto", "campaign_adequacy", "campaign_selection", "identify_auto", "silverbox_multilevel_selection"]
 
 #: The ``terms`` value that asks for model selection.
 AUTO = "auto"
@@ -130,3 +130,28 @@ def identify_auto(campaign, settings):
     result = replace(result, models=models, selections=selections, selection_errors=errors)
     adequacy, adequacy_errors = campaign_adequacy(result)
     return replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
+
+
+def silverbox_multilevel_selection(levels=None, *, skip_periods=5, criterion="bic"):
+    """Model selection on the Silverbox multilevel multisines (``../shared/data/silverbox_multilevel_noel``).
+
+    Each level's periods after ``skip_periods`` are averaged (as in
+    :func:`jointid.app.public_data.silverbox_multilevel`) and the broadband candidates are
+    ranked by :func:`jointid.identify.selection.select_broadband`, the levels being the
+    cross-validation folds.
+    """
+    from ..identify.selection import select_broadband
+    from ..io.datasets import load_silverbox_multilevel
+    from ..signal.broadband import average_periods
+    from .public_data import silverbox_multilevel_levels
+
+    levels = tuple(silverbox_multilevel_levels() if levels is None else levels)
+    states = []
+    for lv in levels:
+        rec = load_silverbox_multilevel(lv)
+        avg = average_periods({"u": rec["u"], "y": rec["y"]}, rec.fs, period=rec.meta["samples_per_period"],
+                              skip_periods=skip_periods, input="u")
+        states.append(avg.states("u", "y", measured="displacement"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        return select_broadband(states, levels, criterion=criterion, preload="Silverbox multilevel")

@@ -52,6 +52,8 @@ __all__ = [
     "CandidateScore",
     "SelectionResult",
     "select_model",
+    "select_broadband",
+    "broadband_candidates",
     "forward_selection",
     "single_mode_model",
 ]
@@ -675,3 +677,97 @@ def forward_selection(signals_list, levels, *, base="q + q'", pool=FORWARD_POOL,
         path = [_score(space, s.candidate, levels, lv, False, n_harmonics, cv_amplitude) for s in path]
     return _result(path, criterion, delta, lv, common, space, sigs, preload, weighting, filtered, fit_selected,
                    "forward")
+
+
+def broadband_candidates(damping_order=None) -> tuple:
+    """The default families without amplitude laws (a broadband record has no single ``q_max``)."""
+    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if c.name != "amplitude-dependent stiffness")
+
+
+@single_threaded
+def select_broadband(states_list, levels, candidates=None, *, criterion="bic", delta=2.0,
+                     preload=None) -> SelectionResult:
+    """Rank candidate models of periodic broadband records (multisines at several levels).
+
+    Each record's lines are the rows of :class:`~jointid.identify.broadband.BroadbandForceStateMapping`
+    with the inertia column and the noise weights of the common library (the union of the
+    candidates' terms) fitted to that record alone; the rows are divided by that fit's
+    residual standard deviation, so that a candidate's residual sum is a chi-square in the
+    units of each record's own noise level (the common library holds every candidate).
+    Candidates are fitted to all records in these rows (``AIC``, ``BIC`` with ``nu`` the
+    number of rows) and, leaving one level out, to the other levels: the cross-validation
+    score is the held-out level's chi-square per row (about 1 when the model explains it).
+    The pick is as in :func:`select_model`.
+
+    Parameters
+    ----------
+    states_list : sequence of BroadbandStates
+        Periodic records (one or more per level).
+    levels : sequence
+        Level of each record.
+    candidates : sequence, optional
+        Term strings or :class:`Candidate` objects without amplitude laws; default
+        :func:`broadband_candidates`.
+    """
+    from .broadband import BroadbandForceStateMapping
+
+    if criterion not in ("aic", "bic"):
+        raise IdentificationError(f"criterion must be 'aic' or 'bic', got {criterion!r}")
+    cands = broadband_candidates() if candidates is None else _candidates(candidates, 0)
+    if any(c.amplitude_laws for c in cands):
+        raise IdentificationError("broadband candidates take no amplitude laws")
+    states_list, levels = list(states_list), list(levels)
+    if len(levels) != len(states_list):
+        raise IdentificationError(f"{len(levels)} levels given for {len(states_list)} records")
+    terms = {}
+    for c in cands:
+        for t in c.library:
+            terms.setdefault(t.name, t)
+    common = library(list(terms.values()))
+    rows = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        for s in states_list:
+            est = BroadbandForceStateMapping(common, fit_inertia=True, weighting="noise")
+            est.fit(s)
+            w = est._noise_weights(common, s, est.coef_)
+            A, b = est._rows(common, s, w)
+            res = lstsq_from_reduced(A, b, A.shape[0])
+            sigma = np.sqrt(res.rss / max(A.shape[0] - A.shape[1], 1))
+            rows.append((A / sigma, b / sigma))
+    lv = _unique_levels(levels)
+    n_rows = sum(a.shape[0] for a, _ in rows)
+    scores = []
+    for c in cands:
+        cols = [0] + [1 + common.index(t.name) for t in c.library]
+        names = ("m",) + c.library.coefficient_names
+
+        def fit(idx):
+            A = np.vstack([rows[i][0][:, cols] for i in idx])
+            b = np.concatenate([rows[i][1] for i in idx])
+            r = lstsq_from_reduced(A, b, A.shape[0])
+            return r.coefficients, A, r.condition_number
+
+        theta, A, cond = fit(range(len(rows)))
+        chi2 = float(np.sum((A @ theta - np.concatenate([r[1] for r in rows])) ** 2))
+        from .uncertainty import scaled_inverse
+
+        se = np.sqrt(np.clip(np.diag(scaled_inverse(A.T @ A)), 0.0, None))
+        unresolved = tuple(n for n, t, v, e in zip(names[1:], c.library, theta[1:], se[1:])
+                           if t.name not in ("q", "q'") and not abs(v) > RESOLVED_T * e)
+        cv = []
+        if len(lv) >= 2:
+            for L in lv:
+                test = [i for i, x in enumerate(levels) if x == L]
+                th, _, _ = fit([i for i, x in enumerate(levels) if x != L])
+                r2 = sum(float(np.sum((rows[i][0][:, cols] @ th - rows[i][1]) ** 2)) for i in test)
+                cv.append(r2 / sum(rows[i][0].shape[0] for i in test))
+        P = len(cols)
+        cvf = float(np.mean(cv)) if cv else float("nan")
+        cvse = float(np.std(cv, ddof=1) / np.sqrt(len(cv))) if len(cv) > 1 else float("nan")
+        scores.append(CandidateScore(c, names, theta, se, chi2, n_rows - P, chi2 + 2.0 * P,
+                                     chi2 + P * math.log(n_rows), cvf, cvse, unresolved=unresolved,
+                                     condition_number=float(cond)))
+    scores = sorted(scores, key=lambda s: (getattr(s, criterion), s.n_parameters))
+    return SelectionResult(preload, tuple(scores), _pick(scores, criterion, delta), criterion, float(delta),
+                           tuple(lv), common.names, 1.0, float(n_rows), None, "broadband", len(states_list))
