@@ -10,7 +10,9 @@ times, measured in the same process:
 
 It prints the wall and CPU times, the ratios, the round trip of an empty task, the cluster
 start-up time, the peak resident memory of each worker, the load average (a shared machine
-gives a lower ratio than a quiet one: compare the CPU time with the wall time), and checks
+gives a lower ratio than a quiet one: compare the CPU time with the wall time; the CPU
+overhead per task, workers' and this process's CPU time less the in-process run's, does not
+depend on the load), and checks
 that the three runs wrote the same ``campaigns.jsonl`` byte for byte.
 
     python benchmarks/bench_study.py                  # ~3 min on two quiet cores
@@ -26,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from jointid.app.parallel import map_tasks
+from jointid.app.parallel import local_cluster, map_tasks
 from jointid.app.study import run_study
 
 
@@ -47,6 +49,11 @@ def plan(campaigns: int) -> dict:
 
 def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kB
+
+
+def _cpu_s() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
 
 
 def _noop(i):
@@ -82,16 +89,19 @@ def main(argv=None):
         results = {}
         for workers in (1, args.workers):
             t0 = time.perf_counter()
-            with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                          dashboard_address=None) as cl, distributed.Client(cl) as client:
+            with local_cluster(workers) as cl, distributed.Client(cl) as client:
                 client.run(_warm_up)
                 start = time.perf_counter() - t0
                 _, t_noop, _ = timed(lambda: map_tasks(_noop, [(i,) for i in range(n)], client=client))
-                _, t, _ = timed(lambda: run_study(p, tmp / f"w{workers}", client=client, report=False))
+                cpu0 = client.run(_cpu_s)
+                _, t, cpu_main = timed(lambda: run_study(p, tmp / f"w{workers}", client=client, report=False))
+                cpu_workers = sum(client.run(_cpu_s).values()) - sum(cpu0.values())
                 rss = client.run(_peak_rss_mb)
             results[workers] = t
             print(f"local cluster, {workers} worker(s): {t:7.2f} s wall (start-up and imports {start:.2f} s)   "
                   f"ratio to in-process {t_serial / t:5.2f}x")
+            print(f"    CPU: workers {cpu_workers:7.2f} s, this process (client and scheduler) {cpu_main:6.2f} s; "
+                  f"CPU overhead per task {1e3 * (cpu_workers + cpu_main - cpu_serial) / n:6.2f} ms")
             print(f"    empty task round trip {1e3 * t_noop / n:6.2f} ms/task; "
                   f"peak memory per worker: {', '.join(f'{v:.0f} MB' for v in rss.values())}")
             if workers == 1:

@@ -14,7 +14,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from jointid.app.parallel import dask_client, map_tasks  # noqa: E402
+from jointid.app.parallel import dask_client, local_cluster, map_tasks  # noqa: E402
 from jointid.app.study import run_study  # noqa: E402
 from jointid.app.synthesis import load_simulation_config, simulate_campaign  # noqa: E402
 from jointid.app.workflow import identify_campaign  # noqa: E402
@@ -26,12 +26,8 @@ from test_study import small_plan  # noqa: E402
 def cluster():
     """Two single-threaded worker processes on the loopback interface, no dashboard; a task that
     takes its worker down is not tried again."""
-    import dask
-
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                      dashboard_address=None) as c:
-            yield c
+    with local_cluster(2, allowed_failures=0) as c:
+        yield c
 
 
 @pytest.fixture(scope="module")
@@ -50,6 +46,7 @@ def test_two_workers_give_the_serial_results_bit_for_bit(cluster, serial, tmp_pa
         assert res.n_run == 8
         used = {ts for ts in client.run(os.getpid).values()}
     assert len(used) == 2 and os.getpid() not in used
+    assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")  # loopback only
     assert (tmp_path / "campaigns.jsonl").read_bytes() == lines
     assert (tmp_path / "study.json").read_bytes() == study
     assert res.statistics == ref.statistics
@@ -59,8 +56,7 @@ def test_a_killed_worker_does_not_change_the_study(serial, tmp_path):
     """A worker process killed mid-study: its campaigns run again elsewhere; same results, all campaigns."""
     ref, lines, _ = serial
     path = tmp_path / "campaigns.jsonl"
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cl, distributed.Client(cl) as client:
+    with local_cluster(2) as cl, distributed.Client(cl) as client:
         pids = client.run(os.getpid)
         with ThreadPoolExecutor(1) as pool:
             running = pool.submit(run_study, small_plan(campaigns=8, seed=21), tmp_path, client=client, report=False)

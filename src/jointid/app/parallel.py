@@ -30,7 +30,7 @@ from contextlib import contextmanager
 from .._blas import single_threaded
 from ..errors import SchedulerError
 
-__all__ = ["map_tasks", "dask_client", "progress_bar", "resolve_jobs", "ALLOWED_FAILURES"]
+__all__ = ["map_tasks", "dask_client", "local_cluster", "progress_bar", "resolve_jobs", "ALLOWED_FAILURES"]
 
 #: Workers a task may lose (killed, out of memory) before the run stops with an error.
 ALLOWED_FAILURES = 3
@@ -104,25 +104,35 @@ def dask_client(jobs=1, scheduler=None, timeout="20s"):
         When dask.distributed is not installed (with the install command).
     """
     try:
-        import dask
-        from distributed import Client, LocalCluster
+        from distributed import Client
     except ImportError as exc:  # pragma: no cover - distributed is a declared dependency
         raise ImportError(_INSTALL) from exc
-    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
-        if scheduler:
-            try:
-                client = Client(scheduler, timeout=timeout)
-            except (OSError, TimeoutError) as exc:
-                raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from exc
-            with client:
-                yield client
-            return
-        import logging
-
-        cluster = LocalCluster(n_workers=resolve_jobs(jobs), threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.ERROR)
-        with cluster, Client(cluster) as client:
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=timeout)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from exc
+        with client:
             yield client
+        return
+    with local_cluster(resolve_jobs(jobs)) as cluster, Client(cluster) as client:
+        yield client
+
+
+def local_cluster(n_workers: int, allowed_failures: int = ALLOWED_FAILURES):
+    """A ``distributed.LocalCluster`` of single-threaded worker processes on the loopback interface.
+
+    No dashboard; the scheduler's small HTTP server (health checks) takes a free loopback port.
+    A task may take ``allowed_failures`` workers down with it and still be run again.
+    """
+    import logging
+
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                        dashboard_address=None,
+                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0", "allowed_failures": allowed_failures},
+                        silence_logs=logging.ERROR)
 
 
 def _call(fn, args):
