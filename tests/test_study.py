@@ -150,6 +150,7 @@ def test_grid_points_cycle_over_the_campaigns():
     ({"vary": {"excitation.force_levels": {"uniform": [1, 2], "size": [3, 2]}}}, "size"),
     ({"grid": {"acquisition.fs": []}}, "non-empty list"),
     ({"studdy": {}}, "did you mean 'study'"),
+    ({"vary": {"model.omega1.x": {"uniform": [1, 2]}}}, "below a value"),
     ({"identify": {"harmonics": 5}}, "did you mean 'n_harmonics'"),
     ({"study": {"campaigns": 0}}, "at least 1"),
     ({"acquisition": {"fs": 20.0}}, "below twice"),

@@ -31,7 +31,8 @@ draws between ``[min, max]``).  A path through a list of tables (``model.omega1`
 element of a list (``model.amplitude_laws.c.2``).
 
 Campaign ``i`` belongs to grid point ``i % n_points``; its seed is the integer state of child
-``i`` of ``numpy.random.SeedSequence(seed)``, from which its draws and its noise follow, so a
+``i`` of ``numpy.random.SeedSequence(seed)``, from which its draws and its noise follow (the
+plan's ``acquisition.seed`` is replaced by a seed drawn from the campaign's), so a
 campaign is reproduced from its seed alone and a study can be extended (more campaigns) or
 resumed (``campaigns.jsonl`` is appended to; campaigns already there are skipped).
 
@@ -314,12 +315,15 @@ class StudyPlan:
         rng = np.random.default_rng(self.campaign_seed(index))
         tables = copy.deepcopy(self.simulation)
         drawn = {}
-        for path, value in points[k].items():
-            _set_path(tables, path, copy.deepcopy(value))
-            drawn[path] = value
-        for path, spec in self.vary:
-            drawn[path] = _draw(spec, rng)
-            _set_path(tables, path, drawn[path])
+        try:
+            for path, value in points[k].items():
+                _set_path(tables, path, copy.deepcopy(value))
+                drawn[path] = value
+            for path, spec in self.vary:
+                drawn[path] = _draw(spec, rng)
+                _set_path(tables, path, drawn[path])
+        except ManifestError as exc:
+            raise ManifestError(f"{self.source}: {exc}") from exc
         tables.setdefault("acquisition", {})
         tables["acquisition"]["seed"] = int(rng.integers(0, 2**63 - 1))
         return tables, drawn, k
