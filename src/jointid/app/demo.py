@@ -199,6 +199,7 @@ class DemoResult:
     checks: dict
     timings: dict
     paths: dict = field(default_factory=dict)
+    run_id: str = ""  # shown in report.html and stored in results.json
 
     def preload(self, p) -> PreloadResult:
         for r in self.preloads:
@@ -214,6 +215,7 @@ class DemoResult:
             "settings": self.settings.summary(),
             "checks": self.checks,
             "timings_s": self.timings,
+            "run_id": self.run_id,
             "preloads": [p.summary() for p in self.preloads],
         }
 
@@ -483,6 +485,9 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     from .parallel import progress_bar
 
     t_start = time.perf_counter()
+    from ..report.output import new_run_id
+
+    run_id = new_run_id()
     settings = settings or DemoSettings()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -529,14 +534,15 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
         from ..report.demo_report import demo_figures, save_figures
 
         t0 = time.perf_counter()
-        draft = DemoResult(out, settings, tuple(results), _checks(results, time.perf_counter() - t_start), timings)
+        draft = DemoResult(out, settings, tuple(results), _checks(results, time.perf_counter() - t_start), timings,
+                           run_id=run_id)
         figs = demo_figures(draft)
         saved, cached = save_figures(figs, out / "figures")
         paths["figures"] = [str(p) for ps in saved.values() for p in ps]
         timings["figures"] = time.perf_counter() - t0
     tick("figures")
     timings["total"] = time.perf_counter() - t_start
-    demo = DemoResult(out, settings, tuple(results), _checks(results, timings["total"]), timings, paths)
+    demo = DemoResult(out, settings, tuple(results), _checks(results, timings["total"]), timings, paths, run_id)
     if figures:
         from ..report.demo_report import write_demo_html
 
@@ -545,7 +551,7 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
 
     paths["results"] = str(out / "results.json")
     timings["total"] = time.perf_counter() - t_start
-    demo = DemoResult(out, settings, tuple(results), _checks(results, timings["total"]), timings, paths)
+    demo = DemoResult(out, settings, tuple(results), _checks(results, timings["total"]), timings, paths, run_id)
     write_json(out / "results.json", demo.summary())
     tick("report")
     bar.close()

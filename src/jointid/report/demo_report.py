@@ -303,7 +303,6 @@ def demo_sections(demo, figs) -> list:
         "the identification reads only those files: random test -> H1 -> modal fit -> FE updating -> first mode "
         "shape -> modal coordinates -> force-state mapping -> damping and power laws -> harmonic-balance "
         "re-prediction.",
-        f"Total run time {demo.timings.get('total', float('nan')):.1f} s.",
     ])
 
     rig = Section("The virtual rig", [
@@ -319,7 +318,7 @@ def demo_sections(demo, figs) -> list:
         rows.append({
             "preload [N]": pr.preload,
             "f1..f4 stuck [Hz]": ", ".join(f"{f:.2f}" for f in pr.rig.linear_frequencies_hz),
-            "modal damping": float(pr.rig.model.zeta[0]),
+            "modal damping ratio [%]": 100 * float(pr.rig.model.zeta[0]),
             "F_S [N m]": p.F_S, "K_T [N m/rad]": p.K_T, "chi": p.chi, "beta": p.beta,
             "phi_max [rad]": p.phi_max, "k3 joint [N m/rad^3]": law.k3,
             "3 + chi": p.dissipation_exponent,
@@ -439,7 +438,8 @@ def demo_sections(demo, figs) -> list:
               for pr in demo.preloads for o in pr.result.failed]
     if failed:
         files.tables.append(("failed records", failed, None))
-    appendix = Section("Appendix: acceptance checks and timings")
+    appendix = Section("Appendix: acceptance checks and timings",
+                       [f"Total run time {demo.timings.get('total', float('nan')):.1f} s."])
     appendix.tables.append(("acceptance checks", check_rows(demo), ["check", "value", "passed"]))
     appendix.tables.append(("run time per stage [s]", [{"stage": k, "seconds": v} for k, v in demo.timings.items()],
                             ["stage", "seconds"]))

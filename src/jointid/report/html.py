@@ -62,7 +62,7 @@ def figure_to_data_uri(fig, dpi=110) -> str:
 
 def _cell(v) -> str:
     if isinstance(v, (bool, np.bool_, int, np.integer, float, np.floating)) or v is None:
-        return html.escape(format_value(v))
+        return html.escape(format_value(v, 5))
     return html.escape(str(v))
 
 

@@ -1,0 +1,65 @@
+"""The demo report as a test engineer reads it (slow: runs the whole demo): the summary first,
+a unit on every figure axis, the checks and timings in an appendix, version, date and run id."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from jointid.app.demo import run_demo
+from jointid.report.demo_report import demo_figures
+
+pytestmark = pytest.mark.slow
+
+CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None)
+UNIT = re.compile(r"\[[^\]]+\]")
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    return run_demo(tmp_path_factory.mktemp("demo") / "out", progress=False, seed=0)
+
+
+def test_demo_report_opens_with_the_summary(demo):
+    page = (demo.out_dir / "report.html").read_text(encoding="utf-8")
+    first = page.index("<table")
+    assert first < page.index("<img") and first < page.index(">Appendix: acceptance checks and timings</h2>")
+    head = page[first:page.index("</table>", first)]
+    assert "Identified model per preload" in head
+    for text in ("120", "540", "f1", "omega1", "rad/s", "Hz", "k3", "N/m³", "c0", "N s/m", "95 % interval"):
+        assert text in head, text
+    assert not re.search(r"\d\.\d{9,}", head)
+    assert "Table 4" in page[first:page.index("<img")] and "Table 5" in page[first:page.index("<img")]
+    # the acceptance checks and timings are in the appendix, after every figure
+    checks = page.index("acceptance checks</caption>")
+    assert checks > page.rindex("<img") and page.index("run time per stage") > page.rindex("<img")
+
+
+def test_demo_report_shows_version_date_and_the_run_id_of_its_results(demo):
+    page = (demo.out_dir / "report.html").read_text(encoding="utf-8")
+    run_id = json.loads((demo.out_dir / "results.json").read_text())["run_id"]
+    meta = re.search(r"<p class='meta'>(.*?)</p>", page).group(1)
+    assert run_id and run_id in meta and "jointid " in meta and "date " in meta
+
+
+def test_every_demo_figure_axis_has_a_unit(demo):
+    for name, _, fig in demo_figures(demo):
+        for ax in fig.axes:
+            if ax.axison:
+                assert UNIT.search(ax.get_xlabel()) and UNIT.search(ax.get_ylabel()), (name, ax.get_xlabel(),
+                                                                                        ax.get_ylabel())
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install -y chromium)")
+def test_demo_report_in_headless_chromium_has_the_summary_first(demo, tmp_path):
+    url = (demo.out_dir / "report.html").resolve().as_uri()
+    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+           f"--user-data-dir={tmp_path / 'p'}", "--dump-dom", url]
+    dom = subprocess.run(cmd, check=True, timeout=120, capture_output=True, text=True).stdout
+    first = dom.index("<table")
+    assert first < dom.index("<img") and "Identified model per preload" in dom[first:first + 300]
