@@ -9,10 +9,14 @@
 * :mod:`jointid.identify.laws` -- damping law, energy per cycle, power law (Eq 25-26);
 * :mod:`jointid.identify.hysteresis` -- measured and identified loops (Figs 17-19);
 * :mod:`jointid.identify.delay` -- the response channel's delay behind the excitation, from the dwells;
+* :mod:`jointid.identify.backbone` -- omega(a), zeta(a): identified models with bands, stepped-sine points;
+* :mod:`jointid.identify.jointlaw` -- Iwan and cubic + viscous joint laws fitted to a backbone through the FE modes;
 * :mod:`jointid.identify.regression` -- the scaled, blockwise least squares underneath.
 """
 
+from .backbone import Backbone, equivalent_linearisation, model_backbone, phase_resonance_points
 from .delay import ChannelDelay, ChannelDelayEstimator
+from .jointlaw import JointLawFit, JointModes, fit_cubic_viscous, fit_iwan, fit_joint_laws
 from .fsm import ForceStateMapping, PooledForceStateMapping, band_average
 from .gain import PooledGainForceStateMapping
 from .hysteresis import hysteresis_loop
@@ -20,5 +24,6 @@ from .laws import fit_damping_law, fit_power_law
 from .model import PreloadForceStateMapping, PreloadModel
 from .terms import Term, TermLibrary, library, term
 
-__all__ = ["ChannelDelay", "ChannelDelayEstimator", "ForceStateMapping", "PooledForceStateMapping", "PooledGainForceStateMapping", "band_average",
+__all__ = ["Backbone", "equivalent_linearisation", "model_backbone", "phase_resonance_points", "JointLawFit",
+           "JointModes", "fit_cubic_viscous", "fit_iwan", "fit_joint_laws", "ChannelDelay", "ChannelDelayEstimator", "ForceStateMapping", "PooledForceStateMapping", "PooledGainForceStateMapping", "band_average",
            "PreloadForceStateMapping", "PreloadModel", "hysteresis_loop", "fit_damping_law", "fit_power_law", "Term", "TermLibrary", "library", "term"]

@@ -4,9 +4,12 @@
   frequency, harmonic fit, analytic integration (seed Eq 16-18);
 * :mod:`jointid.signal.broadband` -- multisine and random records: period averaging,
   noise lines, frequency-domain integration;
-* :mod:`jointid.signal.frf` -- H1 and coherence, modal fit, linear modal responses.
+* :mod:`jointid.signal.frf` -- H1 and coherence, modal fit, linear modal responses;
+* :mod:`jointid.signal.ringdown` -- free decays: windowed damped-oscillation fit, states, noise floor.
 """
 
 from .harmonics import HarmonicSeries, StateSignals, estimate_frequency, fit_harmonics, steady_state_signals
+from .ringdown import DecayFit, fit_decay
 
-__all__ = ["HarmonicSeries", "StateSignals", "estimate_frequency", "fit_harmonics", "steady_state_signals"]
+__all__ = ["HarmonicSeries", "StateSignals", "estimate_frequency", "fit_harmonics", "steady_state_signals", "DecayFit",
+           "fit_decay"]
