@@ -91,3 +91,25 @@ def test_adequacy_plot():
     sigs, lev = campaign(TRUTH["cubic"], 35, 0.01, n_frequencies=5)
     ax = _check(sigs, lev).plot()
     assert len(ax.get_legend().get_texts()) == 2
+
+
+def test_identify_writes_adequacy_and_its_figure(tmp_path):
+    """Every identify run assesses its model: results.json adequacy and the level-equality figure."""
+    from jointid.app.paper_example import paper_config
+    from jointid.app.synthesis import load_simulation_config, simulate_campaign
+    from jointid.app.workflow import identify_campaign
+    from jointid.report.output import write_results
+
+    cfg = paper_config(n_frequencies=5, fs=2000.0, periods=20, noise=0.005, seed=8, write_frequency=True,
+                       n_harmonics=9)
+    cfg["excitation"]["force_levels"] = [0.5, 2.0]
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "campaign")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify_campaign(camp, repredict=False)
+        write_results(res, tmp_path / "out", figures=True)
+    d = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert d["adequacy"][0]["adequate"] is True and d["adequacy"][0]["level_equality"]["dof"] == 2
+    assert d["selection"] == []
+    assert list((tmp_path / "out").rglob("adequacy_example.png"))
+    assert "Model adequacy per preload" in res.report()

@@ -361,4 +361,10 @@ def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
     from .reprediction_plots import reprediction_figures
 
     written += reprediction_figures(result)
+    from .selection_plots import selection_figures
+
+    written += selection_figures(result)  # model-selection ranking and level-equality plots per preload
+    from .backbone_plots import backbone_figures
+
+    written += backbone_figures(result)  # omega(a), zeta(a) and the joint laws per preload
     return written
