@@ -470,7 +470,9 @@ def equivalent_linearisation(signals_list, *, force_level=None, label="") -> Bac
     -----
     The standard errors come from the noise left outside the fundamental (the residuals
     of the force and of the acceleration around their first harmonic, which also holds
-    the higher harmonics: a conservative scale), propagated linearly.
+    the higher harmonics: a conservative scale), propagated linearly.  The damping
+    ratio's error also holds ``|w / omega_eq - 1| / 2`` of itself: the spread between a
+    viscous and a hysteretic reading of ``D`` away from resonance.
     """
     a, w_eq, z, a_se, w_se, z_se = ([] for _ in range(6))
     freqs, phases, keqs, Ds = [], [], [], []
@@ -496,7 +498,9 @@ def equivalent_linearisation(signals_list, *, force_level=None, label="") -> Bac
             w_eq.append(we)
             z.append(D / (2 * w * we))
             w_se.append(gs / (2 * we) / np.sqrt(2))
-            z_se.append(np.hypot(gs / np.sqrt(2) / (2 * w * we), D * gs / np.sqrt(2) / (4 * w * we**3)))
+            noise = np.hypot(gs / np.sqrt(2) / (2 * w * we), D * gs / np.sqrt(2) / (4 * w * we**3))
+            # the damping convention (viscous or hysteretic) is unknown: its spread is part of the error
+            z_se.append(np.hypot(noise, 0.5 * abs(w / we - 1) * D / (2 * w * we)))
         else:
             w_eq.append(np.nan), z.append(np.nan), w_se.append(np.nan), z_se.append(np.nan)
     meta = {"frequency_hz": [float(f) for f in freqs], "phase": phases, "k_eq": keqs, "D": Ds}

@@ -189,7 +189,7 @@ class JointLawFit:
         lines = [f"Joint law {self.law}: {ad['n_points']} backbone points, joint amplitude "
                  f"{self.joint_amplitude_range[0]:.3g} .. {self.joint_amplitude_range[1]:.3g}"]
         for n, v, s in zip(self.names, self.values, self.stderr):
-            lines.append(f"  {n:>8} = {v:.6g} ± {1.96 * s:.2g} (95 %) {self.units.get(n, '')}")
+            lines.append(f"  {n:>8} = {v:.6g} ± {1.96 * s:.2g} (95 %) {self.units.get(n, '')}".rstrip())
         lines.append(f"  not determined by this backbone: {', '.join(self.not_determined) or '-'}")
         lines.append(f"  chi2/dof {ad['chi2_red']:.3g}; rms residual omega {ad['rms_omega_rel']:.2e} (relative), "
                      f"zeta {ad['rms_zeta_rel']:.2e}; AIC {ad['aic']:.1f}, BIC {ad['bic']:.1f}")

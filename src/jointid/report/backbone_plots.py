@@ -9,7 +9,7 @@ import numpy as np
 
 from .identify_plots import new_axes
 
-__all__ = ["plot_backbone", "plot_backbones", "joint_law_table"]
+__all__ = ["plot_backbone", "plot_backbones", "joint_law_table", "backbone_figures", "backbone_report_lines"]
 
 _STYLE = {
     "model": dict(fmt="-", marker=None),
@@ -81,3 +81,31 @@ def joint_law_table(fits) -> str:
     for name, f in fits.items():
         lines.append(f.report())
     return "\n\n".join(lines)
+
+
+def backbone_figures(result) -> list:
+    """``(file name, caption, figure)`` of each preload's backbones in a campaign result (none without them)."""
+    from .output import slug
+
+    bb = getattr(result, "backbones", None)
+    out = []
+    for p in (bb.preloads if bb is not None else ()):
+        if p.model is None and p.stepped is None and not p.ringdown:
+            continue
+        fig, _ = p.plot()
+        out.append((f"backbone_{slug(p.preload)}.png", f"omega(a) and zeta(a), preload {p.preload}: model with its "
+                    "95 % band, stepped-sine and phase-resonance points, ring-downs, fitted joint laws", fig))
+    return out
+
+
+def backbone_report_lines(result) -> list:
+    """Text lines of the joint laws fitted per preload (empty without them)."""
+    bb = getattr(result, "backbones", None)
+    lines = []
+    for p in (bb.preloads if bb is not None else ()):
+        if p.joint_laws:
+            lines.append(f"Joint laws from the backbone, preload {p.preload}:")
+            lines += ["  " + f.report().replace("\n", "\n  ") for f in p.joint_laws.values()]
+    if bb is not None and bb.error:
+        lines.append(f"Backbones: {bb.error}")
+    return lines + ([""] if lines else [])

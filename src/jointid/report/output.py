@@ -364,4 +364,7 @@ def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
     from .selection_plots import selection_figures
 
     written += selection_figures(result)  # model-selection ranking and level-equality plots per preload
+    from .backbone_plots import backbone_figures
+
+    written += backbone_figures(result)  # omega(a), zeta(a) and the joint laws per preload
     return written

@@ -113,6 +113,9 @@ def campaign_report(result) -> str:
             out.append("  " + (a.report().replace("\n", "\n  ") if a is not None
                                else result.adequacy_errors.get(p, "-")))
         out.append("")
+    from .backbone_plots import backbone_report_lines
+
+    out += backbone_report_lines(result)
     out.append("Groups (the paper's method, Table 5): pooled regression per force level (shared omega1, k3; "
                "one c per record) and band average")
     out.append(
