@@ -113,3 +113,15 @@ def test_identify_writes_adequacy_and_its_figure(tmp_path):
     assert d["selection"] == []
     assert list((tmp_path / "out").rglob("adequacy_example.png"))
     assert "Model adequacy per preload" in res.report()
+
+
+def test_nothing_to_test_is_not_called_adequate():
+    """One force level and no preload model: the verdict says 'not assessed', never 'holds'."""
+    from jointid.identify.adequacy import assess_preload
+
+    sigs, lev = campaign(TRUTH["cubic"], 36, 0.01, levels=(1.0,), n_frequencies=4)
+    a = assess_preload(None, [], sigs, lev, [])
+    assert a.adequate is None and a.summary()["adequate"] is None
+    assert a.verdict.startswith("not assessed") and "not assessed" in a.report()
+    one = _check(sigs, lev)  # with the preload model: records checked, equality not tested
+    assert one.adequate and "not tested" in " ".join(one.messages)

@@ -478,7 +478,7 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     adequacy, adequacy_errors = campaign_adequacy(result)
     result = replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
     for a in adequacy.values():
-        if a is not None and not a.adequate:
+        if a is not None and a.adequate is False:
             warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=3)
     if settings.repredict:
         from .reprediction import loop_errors, repredict_campaign

@@ -141,8 +141,8 @@ class AdequacyResult:
     records : tuple of RecordAdequacy
     drift : dict
         Force level -> ``{"t": ..., "slope_per_record": ..., "drifts": bool}`` of the own ``omega1``.
-    adequate : bool
-        No check says the model does not hold.
+    adequate : bool or None
+        No check says the model does not hold (``None``: no check could be made).
     messages : tuple of str
     """
 
@@ -161,6 +161,8 @@ class AdequacyResult:
     @property
     def verdict(self) -> str:
         """One line: the model holds, or the first reason it does not."""
+        if self.adequate is None:
+            return self.messages[0] if self.messages else "not assessed"
         if self.adequate:
             return f"the {self.model_name} model holds" + (f" ({self.messages[0]})" if self.messages else "")
         return self.messages[0] if self.messages else f"the {self.model_name} model does not hold"
@@ -198,7 +200,7 @@ class AdequacyResult:
             "preload": self.preload,
             "terms": list(self.terms),
             "model": self.model_name,
-            "adequate": bool(self.adequate),
+            "adequate": None if self.adequate is None else bool(self.adequate),
             "verdict": self.verdict,
             "messages": list(self.messages),
             "level_equality": {"chi2": num(self.joint_chi2), "dof": int(self.joint_dof), "p_value": num(self.joint_p),
@@ -216,7 +218,7 @@ class AdequacyResult:
 
     def report(self) -> str:
         head = f"preload {self.preload}: " if self.preload is not None else ""
-        verdict = "holds" if self.adequate else "does NOT hold"
+        verdict = "not assessed" if self.adequate is None else "holds" if self.adequate else "does NOT hold"
         lines = [f"{head}adequacy of the {self.model_name} model ({' + '.join(self.terms)}): {verdict}"]
         if self.joint_dof:
             lines.append(f"  equality across force levels: chi2 = {self.joint_chi2:.4g} on {self.joint_dof} dof "
@@ -435,6 +437,14 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
         if dl:
             msgs.append(f"own omega1 trends with the record order at force level(s) {', '.join(str(x) for x in dl)}: "
                         f"drift during the test, or a dependence the model lacks")
+    if not dof:
+        why = ("fewer than two force levels with a calibrated pooled fit" if len(level_fits) < 2 else
+               "no shared parameter without an amplitude law")
+        if not recs:
+            adequate = None
+            msgs.append(f"not assessed: {why}, and no preload model (e.g. an unknown force gain)")
+        else:
+            msgs.append(f"equality across force levels not tested: {why}")
     return AdequacyResult(preload, terms, name, eq, chi2, dof, p, recs, drift, adequate, tuple(msgs))
 
 
