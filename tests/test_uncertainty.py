@@ -11,7 +11,7 @@ from jointid.app.study import StudyPlan, run_campaign, study_statistics
 from jointid.app.synthesis import load_simulation_config, simulate_campaign
 from jointid.app.workflow import identify_campaign
 from jointid.errors import IdentificationError
-from jointid.identify.fsm import ForceStateMapping, PooledForceStateMapping
+from jointid.identify.fsm import ForceStateMapping
 from jointid.identify.laws import fit_damping_law
 from jointid.identify.model import PreloadForceStateMapping, parameter_names
 from jointid.identify.regression import lstsq_from_reduced, pooled_solve
