@@ -60,7 +60,7 @@ from .broadband import delta_method
 from .fsm import COND_LIMIT, pooled_inputs, split_terms
 from .regression import pooled_lstsq, reduce_blocks
 from .terms import library
-from .uncertainty import record_scores, sandwich
+from .uncertainty import ci95, record_scores, sandwich
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
 
@@ -296,10 +296,14 @@ class GainFit:
             "terms": list(self.terms),
             "shared": {n: float(v) for n, v in zip(self.shared_names, self.shared)},
             "shared_stderr": {n: float(v) for n, v in zip(self.shared_names, self.shared_stderr)},
+            "shared_ci95": {n: ci95(v, s) for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr)},
             "per_record": {n: self.own[:, i].tolist() for i, n in enumerate(self.own_names)},
             "per_record_stderr": {n: self.own_stderr[:, i].tolist() for i, n in enumerate(self.own_names)},
+            "per_record_ci95": {n: [ci95(v, s) for v, s in zip(self.own[:, i], self.own_stderr[:, i])]
+                                for i, n in enumerate(self.own_names)},
             "derived": {k: float(v[0]) for k, v in d.items()},
             "derived_stderr": {k: float(v[1]) for k, v in d.items()},
+            "derived_ci95": {k: ci95(v[0], v[1]) for k, v in d.items()},
             "q_max": np.asarray(self.q_max).tolist(),
             "frequency_hz": np.asarray(self.frequency_hz).tolist(),
             "omega1_per_record": np.asarray(self.omega1_per_record).tolist(),
@@ -313,6 +317,7 @@ class GainFit:
             cm, cs = self.per_record("c")
             out["c_over_m"] = cm.tolist()
             out["c_over_m_stderr"] = cs.tolist()
+            out["c_over_m_ci95"] = [ci95(v, s) for v, s in zip(cm, cs)]
             out["damping_ratio"] = self.damping_ratio().tolist()
         return out
 
