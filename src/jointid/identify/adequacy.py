@@ -10,7 +10,8 @@ Three checks, each with the calibrated covariances of :mod:`jointid.identify.unc
   joint fitted as a cubic spring gives a ``k3`` that falls with the level;
 * **per-record residual against the preload model**: each record's weighted misfit
   ``|W_r (z_r - R_r theta_r)|^2 / p`` in its reduced space (about 1 when the model explains
-  the record to the noise, with a calibrated p-value); a record beyond the noise
+  the record to the noise, with a calibrated p-value; a median above ``MISFIT_LIMIT`` says
+  the model misses a part of the restoring force); a record beyond the noise
   (``p < P_LIMIT / n_records``) and far above the median of a level the model explains to
   the noise (median misfit at most 3) is an outlier, and a trend of the records' own
   ``omega1`` with the acquisition order (beside ``q_max``) is a drift;
@@ -41,6 +42,8 @@ P_LIMIT = 1e-3
 OUTLIER_FACTOR = 5.0
 #: Outliers are only sought in a level whose median misfit is at most this (explained to the noise).
 OUTLIER_MEDIAN_LIMIT = 3.0
+#: A median record misfit above this (the noise gives about 1) says terms are missing.
+MISFIT_LIMIT = 10.0
 #: |t| of the order trend of the own omega1 above which a group drifts.
 DRIFT_T = 5.0
 
@@ -428,6 +431,11 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     drift = {}
     if model is not None and fits:
         recs = record_adequacy(model, fits, signals_list, levels, labels, weighting)
+        med = float(np.median([r.misfit for r in recs]))
+        if med > MISFIT_LIMIT:
+            adequate = False
+            msgs.append(f"the median record leaves a residual {med:.3g} times what the noise explains: the "
+                        f"{name} model misses a part of the restoring force at this preload")
         out = [r.record for r in recs if r.outlier]
         if out:
             msgs.append(f"{len(out)} record(s) far off the model: {', '.join(str(o) for o in out)} (misfit more than "

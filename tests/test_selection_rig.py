@@ -1,0 +1,59 @@
+"""Virtual rig (Iwan joint) at both preloads: the cubic model is flagged, the selected model re-predicts
+a held-out force level's nonlinear FRF peak (slow: runs the demo's campaigns)."""
+
+import warnings
+
+import pytest
+
+from jointid.app.demo import run_demo
+from jointid.app.reprediction import repredict_group
+from jointid.identify.model import PreloadForceStateMapping
+from jointid.identify.selection import select_model, single_mode_model
+from jointid.identify.terms import library
+
+
+def _held_out(pr, key, sigs, lev, cand, level):
+    """The candidate fitted without one force level, solved at that level against the rig's exact FRF."""
+    train = [i for i, x in enumerate(lev) if x != level]
+    m = PreloadForceStateMapping(cand.terms, amplitude_laws=cand.laws).fit([sigs[i] for i in train]).result_
+    model = single_mode_model(library(cand.terms), m.law_orders, m.parameters)
+    s = pr.structure
+    phi_f = abs(float(s.phi_force[0]))
+    phi_s = abs(float(s.phi_sensors[list(s.sensors).index("accel_42"), 0]))
+    exact = next(r.exact for r in pr.repredictions if r.force_level == level)
+    r = repredict_group(pr.result, pr.result.group(key, level), forcing=phi_f * float(level), scale=phi_s * phi_f,
+                        exact=exact, model=model)
+    return r.peak_frequency_error_percent, r.peak_amplitude_error_percent
+
+
+@pytest.mark.slow
+def test_rig_cubic_flagged_and_selected_model_repredicts_held_out_level(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        demo = run_demo(tmp_path / "demo", progress=False, seed=0, figures=False)
+    for pr in demo.preloads:
+        key = next(iter(pr.result.adequacy))
+        adq = pr.result.adequacy[key]
+        k3 = next(e for e in adq.equality if e.name == "k3")
+        print(f"preload {key:g} N: {adq.verdict}")
+        assert not adq.adequate and k3.p_value < 1e-6 and k3.ratio > 2.0  # k3 falls ~3x (120 N), ~4x (540 N)
+        assert "the cubic model does not hold at this preload" in adq.verdict
+        recs = [o for o in pr.result.records if o.usable and o.spec.preload == key]
+        sigs, lev = [o.signals for o in recs], [o.spec.force_level for o in recs]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sel = select_model(sigs, lev, preload=key, fit_selected=False)
+        print(sel.report())
+        assert sel.selected == "amplitude-dependent stiffness"
+        assert sel.score("cubic").cv_force > 3 * sel.selected_score.cv_force
+        cubic = sel.score("cubic").candidate
+        for level in sorted(set(lev)):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                f_sel, a_sel = _held_out(pr, key, sigs, lev, sel.candidate, level)
+                f_cub, a_cub = _held_out(pr, key, sigs, lev, cubic, level)
+            print(f"  held-out F = {level} N: selected peak frequency {f_sel:+.4f} %, amplitude {a_sel:+.3f} %; "
+                  f"cubic {f_cub:+.4f} %, {a_cub:+.3f} %")
+            assert abs(f_sel) < 0.05  # the stiffness law carries the frequency, also in extrapolation
+            if level != max(lev):  # within the measured amplitudes (the top level extrapolates the damping law)
+                assert abs(a_sel) < 1.0
