@@ -75,6 +75,9 @@ def campaign_selection(result, **kw) -> tuple:
     for preload in preloads:
         recs = _preload_records(result, preload)
         try:
+            if result.settings.force_gain != "known":
+                raise IdentificationError("model selection needs a known force gain (the restoring force is "
+                                          "force minus acceleration)")
             if len({o.spec.force_level for o in recs}) < 2:
                 raise IdentificationError("cross-validation needs at least two force levels")
             with warnings.catch_warnings():
