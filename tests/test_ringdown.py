@@ -91,3 +91,16 @@ def test_dominant_frequency_and_bad_input():
         fit_decay(t, bad)
     with pytest.warns(JointidWarning, match="noise floor"):
         fit_decay(t, np.random.default_rng(0).standard_normal(t.size), frequency_hz=26.0)
+
+
+def test_invariant_to_time_shift_and_units():
+    t, acc, _ = _linear_decay(noise=0.01, seed=9)
+    d = fit_decay(t, acc)
+    shifted = fit_decay(t + 123.456, acc)
+    scaled = fit_decay(t, 1e3 * acc)
+    np.testing.assert_allclose(shifted.omega_n, d.omega_n, rtol=1e-9)
+    np.testing.assert_allclose(shifted.zeta, d.zeta, rtol=1e-6)
+    np.testing.assert_allclose(shifted.amplitude, d.amplitude, rtol=1e-8)
+    np.testing.assert_allclose(scaled.amplitude, 1e3 * d.amplitude, rtol=1e-8)
+    np.testing.assert_allclose(scaled.zeta, d.zeta, rtol=1e-7)
+    np.testing.assert_allclose(scaled.zeta_stderr, d.zeta_stderr, rtol=1e-5)
