@@ -641,7 +641,7 @@ def test_output_set_replaced_whole_and_stale_files_removed(base, tmp_path, capsy
     entries = []
     for i, rec in enumerate(base):
         write_csv_record(camp / f"r{i}.csv", rec.time, dict(rec.channels))
-        entries.append({"file": f"r{i}.csv", "preload": "=cmd|' /C calc'!A0" if i < 5 else "$x^2$ " + "y" * 300,
+        entries.append({"file": f"r{i}.csv", "preload": "=cmd|' /C calc'!A0" if i < 5 else "$x^2$ /../" + "y" * 180,
                         "force_level": 1.0})
     write_campaign(camp, "labels", entries)
     out = tmp_path / "out"

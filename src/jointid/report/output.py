@@ -54,15 +54,19 @@ def slug(value) -> str:
     return safe
 
 
-def tex_safe(value) -> str:
-    """A label for matplotlib text: ``$`` escaped so that it is not read as mathtext.
+def tex_safe(value, max_length=60) -> str:
+    """A label for matplotlib text: ``$`` escaped so that it is not read as mathtext, and
+    shortened to ``max_length`` characters (a long label would squeeze the axes away).
 
     Examples
     --------
     >>> print(tex_safe("$x^2$"))
     \\$x^2\\$
     """
-    return str(value).replace("$", r"\$")
+    text = str(value)
+    if len(text) > max_length:
+        text = text[: max_length - 3] + "..."
+    return text.replace("$", r"\$")
 
 
 def new_run_id() -> str:
