@@ -309,3 +309,25 @@ def test_unknown_gain_pooled_fit_calibrated():
     z = np.array(z)
     for k, spread in enumerate(list(z[:, :2].std(axis=0)) + [z[:, 2:].std()]):
         assert 0.75 < spread < 1.35, (k, spread)
+
+
+def _seed_model_errors(tmp_path, n_frequencies):
+    cfg = paper_config(n_frequencies=n_frequencies)
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "paper")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify_campaign(camp, n_harmonics=9, repredict=False)
+    m = res.models["example"]
+    values = [m.omega1, m.k3, *m.damping_coefficients]
+    return [abs(v / EXACT[k] - 1) for v, k in zip(values, ("omega1", "k3", "c0", "c1", "c2"))]
+
+
+def test_seed_example_noise_free_through_the_preload_model(tmp_path):
+    """The paper's noise-free example on 15 frequencies: the preload model within 1e-8 %."""
+    assert max(_seed_model_errors(tmp_path, 15)) < 1e-10
+
+
+@pytest.mark.slow
+def test_seed_example_41_frequencies_preload_model_1e_9_percent(tmp_path):
+    """The paper's noise-free example as published (41 frequencies): every parameter within 1e-9 %."""
+    assert max(_seed_model_errors(tmp_path, 41)) < 1e-11
