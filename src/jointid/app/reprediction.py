@@ -210,6 +210,10 @@ def _gain(group) -> float:
     return float(group.gain.derived()["gain"][0])
 
 
+class _NoFold(Exception):
+    """The sweeps show no fold: the continuation is not needed."""
+
+
 def _solve(model, forcing, omegas, n_harmonics):
     from ..simulate.hbm import frequency_response
 
@@ -298,9 +302,14 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
     peak_pred = parabolic_peak(f_all, m_all)
     folds = ()
     stable = None
+    # folds show as a disagreement of the sweeps up and down: two stable branches
+    down = _solve(model, Q, 2 * np.pi * grid[::-1], n_harmonics).amplitude[::-1]
+    may_fold = np.max(np.abs(down / r.amplitude - 1.0)) > 1e-4
     try:  # the curve through the folds, if any, by continuation
         from ..simulate.hbm import frequency_response
 
+        if not may_fold:
+            raise _NoFold
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", JointidWarning)
             rc = frequency_response(model, Q, omega_range=(2 * np.pi * lo, 2 * np.pi * hi), n_harmonics=n_harmonics,
@@ -310,7 +319,7 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
             f_all = rc.omega / (2 * np.pi)
             m_all = scale * rc.omega**2 * rc.amplitude / Q
             peak_pred = (float(f_all[np.argmax(m_all)]), float(np.max(m_all)))
-    except JointidError:
+    except (JointidError, _NoFold):
         pass
     k_max = int(np.argmax(m_all))
     if k_max in (0, m_all.size - 1):  # the response still grows at the end of the band: no peak in it
