@@ -106,6 +106,23 @@ def _basis(n_harmonics: int, n_time: int):
     return _readonly(E), _readonly(D), _readonly(P)
 
 
+@functools.lru_cache(maxsize=16)
+def _gauss_nodes(steps):
+    """Phases of the two Gauss points of each of ``steps`` equal steps over one period."""
+    h = 2.0 * np.pi / steps
+    mid = (np.arange(steps) + 0.5) * h
+    off = h / (2.0 * math.sqrt(3.0))
+    return _readonly(np.stack([mid - off, mid + off], axis=1).ravel())  # node pairs in time order
+
+
+@functools.lru_cache(maxsize=32)
+def _gauss_basis(n_harmonics, steps):
+    """``(E.T, (E D).T)`` of the full basis at the Gauss nodes of ``steps`` steps."""
+    Eg = _basis_at(_gauss_nodes(steps), n_harmonics)
+    _, D, _ = _basis(n_harmonics, default_n_time(n_harmonics))
+    return _readonly(Eg.T), _readonly((Eg @ D).T)
+
+
 def _basis_at(tau, n_harmonics):
     """Rows of the time basis at phases ``tau`` (array) -> (len(tau), n)."""
     tau = np.atleast_1d(np.asarray(tau, float))
@@ -803,20 +820,11 @@ class _Problem:
     # -- results ------------------------------------------------------------------------
 
     def _gauss_nodes(self, steps):
-        """Phases of the two Gauss points of each of ``steps`` equal steps over one period."""
-        h = 2.0 * np.pi / steps
-        mid = (np.arange(steps) + 0.5) * h
-        off = h / (2.0 * math.sqrt(3.0))
-        return np.stack([mid - off, mid + off], axis=1).ravel()  # node pairs in time order
+        return _gauss_nodes(int(steps))
 
     def _gauss_basis(self, steps):
-        """Basis and its phase derivative at the Gauss nodes (cached per step count)."""
-        key = int(steps)
-        cache = self.__dict__.setdefault("_gauss_cache", {})
-        if key not in cache:
-            Eg = _basis_at(self._gauss_nodes(key), self.H)
-            cache[key] = (np.ascontiguousarray(Eg.T), np.ascontiguousarray((Eg @ self.D_full).T))
-        return cache[key]
+        """Basis and its phase derivative at the Gauss nodes, transposed (cached)."""
+        return _gauss_basis(self.H, int(steps))
 
     #: Magnus steps per period of the first monodromy estimate (doubled until converged).
     MONODROMY_STEPS = 32
