@@ -97,6 +97,10 @@ def test_unesp_worked_campaign(tmp_path, capsys):
     assert not res["flagged"]
     (rep,) = res["reprediction"]["groups"]
     assert rep["point_rms_error_percent"] < 10
+    # the softening model jumps between the 18 and 19 Hz dwells: continuation through two folds,
+    # and a peak the 1 Hz dwells do not resolve (said, not turned into a peak error)
+    assert len(rep["folds_hz"]) == 2 and all(18.0 < f < 19.0 for f in rep["folds_hz"])
+    assert rep["peak_resolved"] is False
     # without the correction the 17 Hz dwell has a negative damping
     with pytest.warns(Warning, match="negative_input_power"):
         raw = identify_campaign(camp, force_gain="unknown", n_harmonics=3, damping_order=1, repredict=False,
