@@ -85,7 +85,7 @@ def reference_modules():
         mod = importlib.util.module_from_spec(spec)
         mod.__package__ = package
         sys.modules[full] = mod  # dataclasses look their module up
-        exec(compile(src, f"{REFERENCE}:{path}", "exec"), mod.__dict__)
+        exec(compile(src, f"{REFERENCE}:{path}", "exec"), mod.__dict__)  # noqa: S102 (the project's own history)
         mods.append(mod)
     return tuple(mods)
 
@@ -137,8 +137,8 @@ def main(argv=None):
         new = cpu_median(chain(steady_state_signals, freq), rep)
         old = (cpu_median(chain(ref[0].steady_state_signals, freq), rep) if ref is not None
                else RECORDED[key] / 1e3)
-        sig_new = cpu_median(lambda: steady_state_signals(t, Q, a, frequency_hz=freq, n_harmonics=5), rep)
-        sig_old = (cpu_median(lambda: ref[0].steady_state_signals(t, Q, a, frequency_hz=freq, n_harmonics=5), rep)
+        sig_new = cpu_median(lambda f=freq: steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
+        sig_old = (cpu_median(lambda f=freq: ref[0].steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
                    if ref is not None else None)
         res[key] = new
         label = "frequency given and checked" if key == "given" else "frequency estimated"
@@ -157,7 +157,7 @@ def main(argv=None):
     row("401-point sweep, seed model, c(q_max) closure", sweep, sweep_old, ref_note, RECORDED["sweep"], 40.0)
 
     c = SEED_DUFFING_CURVE
-    kw = dict(omega_range=c["omega_range"], n_harmonics=c["n_harmonics"], n_time=c["n_time"])
+    kw = {"omega_range": c["omega_range"], "n_harmonics": c["n_harmonics"], "n_time": c["n_time"]}
     curve = frequency_response(c["model"], c["force_amplitude"], **kw)
     cont = cpu_median(lambda: frequency_response(c["model"], c["force_amplitude"], **kw), rep)
     if ref is not None:

@@ -13,7 +13,12 @@ import pytest
 
 from jointid.errors import JointidWarning, RecordError
 from jointid.signal import harmonics as hm
-from jointid.signal.harmonics import check_time_base, estimate_frequency, fit_harmonics, steady_state_signals
+from jointid.signal.harmonics import (
+    check_time_base,
+    estimate_frequency,
+    fit_harmonics,
+    steady_state_signals,
+)
 
 W = 2 * np.pi * 26.4837
 FS = 2000.0

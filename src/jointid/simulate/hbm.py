@@ -210,7 +210,7 @@ def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
         if abs(step) < 1e-8:  # next correction ~ step^2: below round-off in the value
             break
     ph = tau * kh
-    q_tau = float((Mc[2] @ np.cos(ph) + Ms[2] @ np.sin(ph))) + float(np.sum(x[const_idx]))
+    q_tau = float(Mc[2] @ np.cos(ph) + Ms[2] @ np.sin(ph)) + float(np.sum(x[const_idx]))
     if abs(q_tau) < y1:  # never worse than the grid (guards a stray Newton)
         tau, q_tau = tau0, float(qd[i])
     return abs(q_tau), tau, (1.0 if q_tau >= 0 else -1.0)
