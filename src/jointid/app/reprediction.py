@@ -201,7 +201,9 @@ def _fundamental(series) -> float:
 
 
 def _group_members(result, group):
-    return [o for o in result.records if o.ok and o.spec.group == (group.preload, group.force_level)]
+    """The records of the group's pooled fit, in its row order (flagged records are not among them)."""
+    indices = set(group.record_indices)
+    return [o for o in result.records if o.spec.index in indices]
 
 
 def _gain(group) -> float:
