@@ -154,3 +154,19 @@ def test_checks_units():
     fl = Flag("x", "msg", {"a": np.float64(1.5)})
     assert fl.summary() == {"name": "x", "message": "msg", "values": {"a": 1.5}}
     assert "x" in fl._repr_html_() and fl.report() == "x: msg"
+
+
+@pytest.mark.parametrize("kind", ["sign_flipped", "swapped"])
+def test_a_whole_group_with_flipped_channels_gives_no_number(tmp_path, kind):
+    """Off resonance a flipped sign hides in the noise; the group's other records give it away."""
+    camp = _campaign(tmp_path / "c")
+    for spec in load_campaign(camp).records:
+        corrupt(spec, kind)
+    res = _identify(camp)
+    assert all(r.ok and r.flags for r in res.records), [(r.spec.index, r.flags) for r in res.records]
+    g = res.groups[0]
+    assert g.record_indices == () and g.pooled is None
+    out = tmp_path / "o"
+    assert main(["identify", str(camp), "--out", str(out), "--quiet", "--no-figures"]) == 1
+    s = json.loads((out / "results.json").read_text())
+    assert len(s["flagged"]) == 9 and s["groups"][0].get("omega1") is None

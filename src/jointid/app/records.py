@@ -242,6 +242,9 @@ def flag_group_outliers(outcomes) -> list:
     log values, so only a record far outside the group's own spread is flagged.  Outliers of the pooled fits themselves (records
     the group model does not explain) are to be added here, after the pooled fit.
 
+    When at least half of a group's records show negative input power, the others get
+    ``group_sign``: one test setup per group, and a flipped sign is visible only near resonance.
+
     Returns
     -------
     list of RecordOutcome
@@ -252,7 +255,19 @@ def flag_group_outliers(outcomes) -> list:
     for i, o in enumerate(outcomes):
         if o.ok:
             groups.setdefault(_group_id(o.spec.group), []).append(i)
+    sign_flags = ("negative_input_power", "channel_swap")
     for members in groups.values():
+        # one test setup per group: when most of its records show negative input power, the others
+        # (off resonance, where the power is within the noise) have the same channels and are suspect too
+        wrong = [i for i in members if any(f.name in sign_flags for f in outcomes[i].flags)]
+        if 2 * len(wrong) >= len(members):
+            for i in members:
+                if i not in wrong:
+                    f = Flag("group_sign", f"{len(wrong)} of the {len(members)} records of this group show negative "
+                                           f"input power; this record shares their channels (a flipped sign or "
+                                           f"swapped channels are not visible off resonance)",
+                             {"records_with_negative_power": len(wrong), "records_in_group": len(members)})
+                    outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
         freq = scale_outliers({i: outcomes[i].signals.frequency_hz for i in members}, factor=3.0)
         omega = scale_outliers({i: outcomes[i].fit.omega1 for i in members}, factor=1.5)
         damping = trend_outliers({i: outcomes[i].fit.q_max for i in members},
