@@ -59,8 +59,9 @@ def plot_backbone(backbone, ax=None, label=None, units="Hz"):
         a.set_xscale("log")
         a.grid(True, which="both", alpha=0.3)
     aw.set_ylabel("natural frequency [Hz]" if units == "Hz" else "omega [rad/s]")
-    az.set_ylabel("damping ratio")
-    az.set_xlabel("first-harmonic amplitude a (modal)")
+    az.set_ylabel("damping ratio [1]")
+    for a in (aw, az):  # shared amplitude axis: labelled on both panels
+        a.set_xlabel("first-harmonic amplitude a [m] (modal)")
     aw.legend(fontsize="small")
     return fig, (aw, az)
 

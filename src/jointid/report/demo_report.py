@@ -460,7 +460,8 @@ def demo_summary_section(demo) -> Section:
     sec = Section("Summary", [
         "The identified single-mode model of each preload (one regression over all its records, the damping law "
         "inside), then the seed paper's Table 4 and Table 5 quantities in its units. Modal quantities of the "
-        "mass-normalised first mode; values rounded to two significant digits of their standard error."])
+        "mass-normalised first mode (k3 in N/m³ and c in N s/m for one kg of modal mass, i.e. 1/(m² s²) and 1/s per "
+        "unit modal mass); values rounded to two significant digits of their standard error."])
     sec.tables.append(("Identified model per preload (value ± standard error, 95 % interval)",
                        model_rows(merged), None))
     t4 = []

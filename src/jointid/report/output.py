@@ -254,8 +254,9 @@ def campaign_sections(result, figs, summary=None) -> list:
         f"{summary.get('n_records', len(result.records))} records, {summary.get('n_failed', len(result.failed))} failed, "
         f"{len(summary.get('flagged') or [])} flagged by the plausibility checks. Model terms: "
         f"{' + '.join(s.get('terms') or [])}; {s.get('n_harmonics', '?')} harmonics; damping law order "
-        f"{s.get('damping_order', '?')}. Modal quantities of the mass-normalised first mode in the seed paper's units; "
-        "values are rounded to two significant digits of their standard error."])
+        f"{s.get('damping_order', '?')}. Modal quantities of the mass-normalised first mode in the seed paper's units "
+        "(k3 in N/m³ and c in N s/m for one kg of modal mass, i.e. 1/(m² s²) and 1/s per unit modal mass as in "
+        "jointid.conventions); values are rounded to two significant digits of their standard error."])
     head.tables.append(("Identified model per preload: one regression over all its records, damping law inside "
                         "(value ± standard error, 95 % interval)", model_rows(summary), None))
     head.tables.append(("The paper's Table 5 per force level: pooled fit (shared omega1 and k3, one c per record) and "

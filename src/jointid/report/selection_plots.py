@@ -36,13 +36,13 @@ def plot_selection(selection, ax=None):
     ax.set_xscale("log")
     ax.set_yticks(y, names, fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel(f"Δ{selection.criterion.upper()} + 1 (calibrated chi-square)")
+    ax.set_xlabel(f"Δ{selection.criterion.upper()} + 1 (calibrated chi-square) [1]")
     cv = np.array([np.nan if r["cv_force"] is None else r["cv_force"] for r in rows], float)
     if np.any(np.isfinite(cv)):
         ax2 = ax.twiny()
         ax2.plot(cv, y, "ko", ms=4, label="CV force score")
         ax2.set_xscale("log")
-        ax2.set_xlabel("leave-one-level-out restoring-force score (1 = noise)", fontsize=8)
+        ax2.set_xlabel("leave-one-level-out restoring-force score (1 = noise) [1]", fontsize=8)
     from .output import tex_safe
 
     title = f"model selection, preload {tex_safe(selection.preload)}" if selection.preload is not None \
@@ -65,8 +65,8 @@ def plot_level_equality(adequacy, ax=None):
     if adequacy.equality:
         ax.set_xticks(np.arange(len(adequacy.equality[0].levels)), [str(v) for v in adequacy.equality[0].levels])
     ax.axhline(1.0, color="0.5", lw=0.8)
-    ax.set_xlabel("force level")
-    ax.set_ylabel("parameter / common value")
+    ax.set_xlabel("force level [manifest units]")
+    ax.set_ylabel("parameter / common value [1]")
     ax.set_title(f"{tex_safe(adequacy.model_name)} model across force levels, preload {tex_safe(adequacy.preload)}",
                  fontsize=9)
     ax.grid(True, alpha=0.3)
