@@ -208,7 +208,7 @@ class AdequacyResult:
             "messages": list(self.messages),
             "level_equality": {"chi2": num(self.joint_chi2), "dof": int(self.joint_dof), "p_value": num(self.joint_p),
                                "parameters": [e.summary() for e in self.equality]},
-            "misfit_median": num(float(np.median(mis))) if mis.size else None,
+            "misfit_median": num(float(np.median(mis[np.isfinite(mis)]))) if np.any(np.isfinite(mis)) else None,
             "outliers": list(self.outliers),
             "drift": {str(k): v for k, v in self.drift.items()},
             "explained_force": num(ef),
@@ -232,7 +232,8 @@ class AdequacyResult:
         if self.records:
             ef, efmin = self._fractions("explained_force")
             eh, ehmin = self._fractions("explained_harmonics")
-            mis = np.median([r.misfit for r in self.records])
+            m = np.array([r.misfit for r in self.records], float)
+            mis = float(np.median(m[np.isfinite(m)])) if np.any(np.isfinite(m)) else float("nan")
             lines.append(f"  records: misfit median {mis:.3g} (1 = explained to the noise); restoring force explained "
                          f"{100 * ef:.6g} % (lowest record {100 * efmin:.6g} %); harmonics above the first explained "
                          f"{100 * eh:.3g} % over all records (residual {self.harmonic_residual_to_noise:.3g} times the "
@@ -329,8 +330,14 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
         A = linalg.solve_triangular(w.R, V, trans="T", check_finite=False)
         S = w.W @ linalg.solve_triangular(w.R, A.T, trans="T", check_finite=False).T @ w.W.T
         lam = np.clip(linalg.eigvalsh(0.5 * (S + S.T)), 0.0, None)
-        c, nu = float(np.sum(lam**2) / np.sum(lam)), float(np.sum(lam) ** 2 / np.sum(lam**2))
-        pv = float(stats.chi2.sf(float(e @ e) / c, nu)) if np.isfinite(c) and c > 0 else float("nan")
+        s1, s2 = float(np.sum(lam)), float(np.sum(lam**2))
+        # the weights make tr(W S W^T) = p unless a noise-free record's weight was floored: then the
+        # record has no noise to measure its misfit against
+        pv = float("nan")
+        if s1 > 0.5 * p and s2 > 0 and np.isfinite(s1 + s2):
+            pv = float(stats.chi2.sf(float(e @ e) / (s2 / s1), s1**2 / s2))
+        else:
+            misfit = float("nan")
         R = f.reduced
         yy = float(np.sum(R[: p + 1, p] ** 2))
         rss = float(np.sum((R[:p, :p] @ theta - R[:p, p]) ** 2) + R[p, p] ** 2)
@@ -344,7 +351,8 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
     n = len(out)
     for lv in dict.fromkeys(levels):
         idx = [i for i, x in enumerate(levels) if x == lv]
-        med = float(np.median([out[i].misfit for i in idx]))
+        mis = np.array([out[i].misfit for i in idx], float)
+        med = float(np.median(mis[np.isfinite(mis)])) if np.any(np.isfinite(mis)) else float("nan")
         if not med <= OUTLIER_MEDIAN_LIMIT:
             continue
         for i in idx:
@@ -431,7 +439,8 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     drift = {}
     if model is not None and fits:
         recs = record_adequacy(model, fits, signals_list, levels, labels, weighting)
-        med = float(np.median([r.misfit for r in recs]))
+        mis = np.array([r.misfit for r in recs], float)
+        med = float(np.median(mis[np.isfinite(mis)])) if np.any(np.isfinite(mis)) else float("nan")
         if med > MISFIT_LIMIT:
             adequate = False
             msgs.append(f"the median record leaves a residual {med:.3g} times what the noise explains: the "
