@@ -191,19 +191,22 @@ def _write_set(result, out, run_id, figures, html) -> dict:
 
 
 def _law_rows(summary) -> list:
+    from .summary import coefficient_note
+
     rows = []
     for d in summary.get("damping_law") or []:
         coef, se = d.get("coefficients"), d.get("stderr") or []
         if coef is None:
             rows.append({"preload": str(d.get("preload")), "coefficient": "–", "value ± standard error": "not fitted",
-                         "unit": "", "fit": str(d.get("error") or "")})
+                         "unit": "", "note": "", "fit": str(d.get("error") or "")})
             continue
         fit = (f"chi²/dof {format_value(d.get('chi2_dof'), 3)}, p = {format_value(d.get('p_value'), 2)}, "
                f"{d.get('n_records', '?')} records") if d.get("chi2_dof") is not None else ""
         for k, v in enumerate(coef):
+            s_k = se[k] if k < len(se) else None
             rows.append({"preload": str(d.get("preload")), "coefficient": f"c{k}",
-                         "value ± standard error": format_pm(v, se[k] if k < len(se) else None),
-                         "unit": unit_of(f"c{k}"), "fit": fit if k == 0 else ""})
+                         "value ± standard error": format_pm(v, s_k), "unit": unit_of(f"c{k}"),
+                         "note": coefficient_note(f"c{k}", v, s_k), "fit": fit if k == 0 else ""})
     return rows
 
 

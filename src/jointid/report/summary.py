@@ -16,7 +16,7 @@ import numpy as np
 
 from .formatting import format_ci, format_pm, format_value, unit_of
 
-__all__ = ["model_rows", "table5_rows", "band_resolution", "adequacy_rows", "message_kind", "group_messages",
+__all__ = ["coefficient_note", "model_rows", "table5_rows", "band_resolution", "adequacy_rows", "message_kind", "group_messages",
            "warning_rows", "error_lines", "summary_lines", "console_lines", "Z95"]
 
 Z95 = 1.959963984540054
@@ -57,6 +57,16 @@ def _pm_ci(value, stderr, unit):
     return format_pm(value, stderr), format_ci(ci, stderr), unit
 
 
+def coefficient_note(name, value, stderr) -> str:
+    """What a reader should know about an estimate: unresolved (its 95 % interval includes
+    zero) or, for a damping-law coefficient, negative (the law decreases with amplitude)."""
+    if _finite(value) and _finite(stderr) and abs(value) < Z95 * stderr:
+        return "not resolved (95 % interval includes zero)"
+    if str(name).startswith("c") and str(name)[1:].isdigit() and _finite(value) and value < 0:
+        return "negative: this term lowers c(q_max) as the amplitude grows (a fit over the measured range)"
+    return ""
+
+
 def model_rows(summary) -> list:
     """One row per identified quantity of each preload's model (value ± standard error, 95 %
     interval, unit): f1 in Hz and omega1 in rad/s, then k3 and the damping law c0, c1, ..."""
@@ -80,11 +90,7 @@ def model_rows(summary) -> list:
             if n == "omega1^2":
                 continue
             v_txt, ci_txt, unit = _pm_ci(v, s, unit_of(n))
-            note = ""
-            if _finite(v) and _finite(s) and abs(v) < Z95 * s:
-                note = "not resolved (95 % interval includes zero)"
-            elif n.startswith("c") and n[1:].isdigit() and _finite(v) and v < 0:
-                note = "negative: c(q_max) decreases with amplitude over the measured range"
+            note = coefficient_note(n, v, s)
             rows.append({"preload": str(p), "quantity": n, "value ± standard error": v_txt, "95 % interval": ci_txt,
                          "unit": unit, "note": note})
         if m.get("q_max_range"):
