@@ -170,3 +170,17 @@ def test_a_whole_group_with_flipped_channels_gives_no_number(tmp_path, kind):
     assert main(["identify", str(camp), "--out", str(out), "--quiet", "--no-figures"]) == 1
     s = json.loads((out / "results.json").read_text())
     assert len(s["flagged"]) == 9 and s["groups"][0].get("omega1") is None
+
+
+@pytest.mark.parametrize("noise, k3, periods, fs, levels", [
+    (0.001, -5e6, 6, 1500.0, [0.4, 1.7]),   # hardening, low noise, short records: few periods per half
+    (0.02, 3e6, 15, 4000.0, [0.5, 2.0]),    # softening, 2 % noise
+])
+def test_varied_clean_campaigns_are_not_flagged(tmp_path, noise, k3, periods, fs, levels):
+    """A damping law that grows faster than a power law, few records per group, short records:
+    no flag on clean data (the damping trend check allows the resonant record above the line)."""
+    cfg = paper_config(n_frequencies=5, fs=fs, periods=periods, noise=noise, seed=4, write_frequency=False)
+    cfg["model"][0]["coefficients"]["k3"] = k3
+    cfg["excitation"]["force_levels"] = levels
+    res = _identify(simulate_campaign(load_simulation_config(cfg), tmp_path / "c"))
+    assert all(r.ok and not r.flags for r in res.records), [(r.spec.index, r.flags) for r in res.records]

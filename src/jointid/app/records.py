@@ -236,7 +236,8 @@ def flag_group_outliers(outcomes) -> list:
     Within each (preload, force level) group of identified records: an excitation frequency
     off from the group's median by a factor of 3 or more (``time_unit``: time in ms instead
     of s), an ``omega1`` off by a factor of 1.5 or more, or a damping coefficient ``c`` off the
-    group's trend of ``c`` against ``q_max`` by a factor of 3 or more (``scale_outlier``:
+    group's trend of ``c`` against ``q_max`` (3 times below it or 8 times above: a damping
+    law growing faster than a power law lies above the line of a few records) (``scale_outlier``:
     acceleration in g instead of m/s^2 scales the identified damping by about 9.81 and leaves
     ``omega1`` nearly unchanged near resonance; a wrong channel).  Each limit is also at least 6 robust standard deviations of the group's
     log values, so only a record far outside the group's own spread is flagged.  Outliers of the pooled fits themselves (records
@@ -271,7 +272,8 @@ def flag_group_outliers(outcomes) -> list:
         freq = scale_outliers({i: outcomes[i].signals.frequency_hz for i in members}, factor=3.0)
         omega = scale_outliers({i: outcomes[i].fit.omega1 for i in members}, factor=1.5)
         damping = trend_outliers({i: outcomes[i].fit.q_max for i in members},
-                                 {i: outcomes[i].fit.c for i in members if outcomes[i].fit.c is not None}, factor=3.0)
+                                 {i: outcomes[i].fit.c for i in members if outcomes[i].fit.c is not None},
+                                 factor=(3.0, 8.0))
         for i, (ratio, median) in freq.items():
             f = Flag("time_unit", f"excitation frequency {outcomes[i].signals.frequency_hz:.6g} Hz is {ratio:.4g} "
                                   f"times the group's median {median:.6g} Hz; time in ms instead of s?",

@@ -330,7 +330,7 @@ def _theil_sen(lx, ly):
     return slope, float(np.median(ly - slope * lx))
 
 
-def trend_outliers(x, y, *, factor: float, min_records: int = 5, max_pairs_n: int = 60) -> dict:
+def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60) -> dict:
     """Members of a group far off the group's power-law trend ``y ~ x^p``.
 
     A straight line through ``(log x, log y)`` of the other members is fitted robustly
@@ -345,8 +345,10 @@ def trend_outliers(x, y, *, factor: float, min_records: int = 5, max_pairs_n: in
     ----------
     x, y : mapping key -> float
         Positive values (others are ignored); the keys of ``y`` are the members.
-    factor : float
-        Smallest ratio to the trend that is flagged.
+    factor : float or (float, float)
+        Smallest ratio to the trend that is flagged, or ``(below, above)``: the factors for
+        values below and above the trend (a damping law that grows faster than a power law
+        puts its largest-amplitude record above the line of the others).
 
     Returns
     -------
@@ -379,8 +381,9 @@ def trend_outliers(x, y, *, factor: float, min_records: int = 5, max_pairs_n: in
             slope, icpt = _theil_sen(lx[others], ly[others])
             r = ly[others] - slope * lx[others] - icpt
             fits.append((ly[m] - slope * lx[m] - icpt, 1.4826 * float(np.median(np.abs(r)))))
+    below, above = (factor, factor) if np.isscalar(factor) else factor
     out = {}
     for k, (rk, mad) in zip(keys, fits):
-        if abs(rk) > max(np.log(factor), Z_LIMIT * mad):
+        if abs(rk) > max(np.log(below if rk < 0 else above), Z_LIMIT * mad):
             out[k] = (float(np.exp(rk)), float(y[k] / np.exp(rk)))
     return out
