@@ -125,3 +125,26 @@ def test_nothing_to_test_is_not_called_adequate():
     assert a.verdict.startswith("not assessed") and "not assessed" in a.report()
     one = _check(sigs, lev)  # with the preload model: records checked, equality not tested
     assert one.adequate and "not tested" in " ".join(one.messages)
+
+
+def test_drifting_level_found():
+    """omega1^2 creeping up by 0.1 % per record (a warming rig) during one level's dwells: a drift there."""
+    from jointid.simulate.hbm import steady_state
+    from jointid.simulate.model import SingleModeModel
+    from jointid.simulate.synth import synthesize_record
+
+    sigs, lev = campaign(TRUTH["cubic"], 37, 0.005, n_frequencies=9)
+    rng = np.random.default_rng(5)
+    idx = [i for i, x in enumerate(lev) if x == 1.0]
+    for k, i in enumerate(idx):
+        w = 2 * np.pi * sigs[i].frequency_hz
+        m = SingleModeModel("q - q^3 + q'", ((1 + 1e-3 * k) * 170.0**2, 5e6, 0.0), {"q'": (0.08, 70.0, 1e4)})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            s = steady_state(m, w, 1.0, n_harmonics=9)
+        t, Q, acc = synthesize_record(s, 2000.0, 20 * 2 * np.pi / w, t0=rng.uniform(0, 1), noise=0.005, rng=rng)
+        sigs[i] = steady_state_signals(t, Q, acc, frequency_hz=w / (2 * np.pi), n_harmonics=5, refine_frequency=False)
+    a = _check(sigs, lev)
+    assert a.drift[1.0]["drifts"] and a.drift[1.0]["slope_per_record"] > 0, a.drift
+    assert not a.drift[0.5]["drifts"] and not a.drift[2.0]["drifts"]
+    assert any("trends with the record order" in m for m in a.messages)
