@@ -55,6 +55,8 @@ def test_identify_computes_backbones(identified):
     m, res = identified
     bb = res.backbones
     assert bb is not None and bb.error is None
+    # the ring-down record is identified with the backbones, not counted as a failed stepped-sine record
+    assert not res.failed and all(r.spec.excitation == "stepped-sine" for r in res.records)
     p = bb[1]
     assert p.model is not None and len(p.ringdown) == 1 and p.stepped is not None
     # the stepped-sine points lie on the generating model's backbone

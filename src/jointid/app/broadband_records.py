@@ -46,12 +46,19 @@ _RESPONSES = (("accel", "acceleration"), ("velocity", "velocity"), ("displacemen
 
 
 def split_broadband(specs, to_modal=None):
-    """``(stepped-sine specs, their structures, [(broadband spec, structure), ...])``."""
+    """``(stepped-sine specs, their structures, [(broadband spec, structure), ...])``.
+
+    Ring-down records are in neither list: they are identified with the backbones
+    (:mod:`jointid.app.backbones`), which report their errors.
+    """
     specs = list(specs)
     per = to_modal if isinstance(to_modal, (list, tuple)) else [to_modal] * len(specs)
     sine, sine_modal, broad = [], [], []
     for spec, tm in zip(specs, per):
-        if getattr(spec, "excitation", "stepped-sine") in BROADBAND:
+        excitation = getattr(spec, "excitation", "stepped-sine")
+        if excitation == "ringdown":
+            continue
+        if excitation in BROADBAND:
             broad.append((spec, tm))
         else:
             sine.append(spec)

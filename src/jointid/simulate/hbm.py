@@ -831,14 +831,8 @@ class _Problem:
     #: Change of the monodromy matrix between step counts below which it is accepted.
     MONODROMY_TOL = 1e-6
 
-    def _monodromy(self, c, w, th, steps):
-        """Monodromy matrices ``(K, 2, 2)`` and Liouville determinants of ``K`` steady states."""
-        EgT, EDgT = self._gauss_basis(steps)
-        nodes = self._gauss_nodes(steps)[None, :]
-        h = 2.0 * np.pi / steps
-        c3 = math.sqrt(3.0) / 12.0 * h * h
-        q = c @ EgT
-        v = w[:, None] * (c @ EDgT)
+    def _h_derivatives(self, q, v, th):
+        """``(dh/dq, dh/dv)`` of the restoring force at states ``(K, n)`` for coefficients ``th`` ``(K, p)``."""
         hq = np.zeros_like(q)
         hv = np.zeros_like(q)
         for j, _, dq, dv in self.fast_terms:
@@ -851,6 +845,17 @@ class _Problem:
                 gq, gv = self.lib.terms[j].derivatives(q, v)
             hq += cj[:, None] * gq
             hv += cj[:, None] * gv
+        return hq, hv
+
+    def _monodromy(self, c, w, th, steps):
+        """Monodromy matrices ``(K, 2, 2)`` and Liouville determinants of ``K`` steady states."""
+        EgT, EDgT = self._gauss_basis(steps)
+        nodes = self._gauss_nodes(steps)[None, :]
+        h = 2.0 * np.pi / steps
+        c3 = math.sqrt(3.0) / 12.0 * h * h
+        q = c @ EgT
+        v = w[:, None] * (c @ EDgT)
+        hq, hv = self._h_derivatives(q, v, th)
         # y' = A y in the phase tau = omega t, A = [[0, 1], [-hq, -hv]] / omega = A0 + A1(tau),
         # A0 the mean (Gauss nodes integrate the trigonometric polynomials exactly)
         iw = (1.0 / w)[:, None]
@@ -988,18 +993,7 @@ class _Problem:
             c, w, th = coefs[sl], omegas[sl], thetas[sl]
             q = c @ E.T
             v = w[:, None] * (c @ ED.T)
-            hq = np.zeros_like(q)
-            hv = np.zeros_like(q)
-            for j, _, dq, dv in self.fast_terms:
-                cj = th[:, j]
-                if not np.any(cj != 0.0):
-                    continue
-                if dq is not None and dv is not None:
-                    gq, gv = dq(q, v), dv(q, v)
-                else:
-                    gq, gv = self.lib.terms[j].derivatives(q, v)
-                hq += cj[:, None] * gq
-                hv += cj[:, None] * gv
+            hq, hv = self._h_derivatives(q, v, th)
             L = 2 * self.H + 1
             spec_q = np.fft.rfft(hq, axis=1)[:, :L] * (2.0 / self.N)
             spec_v = np.fft.rfft(hv, axis=1)[:, :L] * (2.0 / self.N)
