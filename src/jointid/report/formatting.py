@@ -158,11 +158,9 @@ def format_ci(interval, stderr=None, unit="") -> str:
     return f"[{_fixed(lo / scale, d)}, {_fixed(hi / scale, d)}]e{e}{tail}"
 
 
-def html_table(rows, columns=None, caption=None, css_class="jointid", digits=4) -> str:
-    """A small HTML table of ``rows`` (dicts): strings escaped and left-aligned, numbers
-    formatted by :func:`format_value` with ``digits`` significant digits and right-aligned.
-    Used by the reports and by the result objects' ``_repr_html_`` (hence the inline
-    alignment: a notebook has no style sheet of ours)."""
+def html_table(rows, columns=None, caption=None, css_class="jointid") -> str:
+    """A small HTML table of ``rows`` (dicts); strings are escaped, numbers formatted by
+    :func:`format_value`.  Used by the result objects' ``_repr_html_``."""
     rows = list(rows)
     if not rows:
         return ""
@@ -174,10 +172,9 @@ def html_table(rows, columns=None, caption=None, css_class="jointid", digits=4) 
         cells = []
         for c in columns:
             v = r.get(c)
-            if isinstance(v, str):
-                cells.append(f"<td class='text' style='text-align:left'>{html.escape(v)}</td>")
-            else:
-                cells.append(f"<td style='text-align:right'>{html.escape(format_value(v, digits))}</td>")
+            text = v if isinstance(v, str) else format_value(v)
+            cells.append(f"<td style='text-align:{'left' if isinstance(v, str) else 'right'}'>"
+                         f"{html.escape(str(text))}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (f"<table class='{css_class}'>{cap}<thead><tr>{head}</tr></thead>"
             f"<tbody>{''.join(body)}</tbody></table>")
