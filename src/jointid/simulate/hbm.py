@@ -363,13 +363,25 @@ class _Problem:
     def _derivatives(self, q, v, theta):
         """``(dh/dq, dh/dv)`` at the time samples (as TermLibrary.derivatives).
 
-        A part that is constant in time (linear terms only) comes back as a float.
+        ``theta`` is one coefficient vector ``(p,)``, or one per row ``(K, p)`` of states
+        ``(K, n)``.  A part that is constant in time (linear terms only) comes back as a
+        float, or a column ``(K, 1)`` per row.
         """
-        gq = float(sum(theta[j] for j in self.lin_q))
-        gv = float(sum(theta[j] for j in self.lin_v))
+        if np.ndim(theta) == 2:
+            def coef(j):
+                return theta[:, j : j + 1]
+            zero = np.zeros((theta.shape[0], 1))
+        else:
+            def coef(j):
+                return theta[j]
+            zero = 0.0
+        gq = sum((coef(j) for j in self.lin_q), zero)
+        gv = sum((coef(j) for j in self.lin_v), zero)
+        if np.ndim(theta) != 2:
+            gq, gv = float(gq), float(gv)
         for j, dq, dv, stiffness in self.nl_terms:
-            c = theta[j]
-            if c == 0.0:
+            c = coef(j)
+            if not np.any(c != 0.0):
                 continue
             if dq is not None and (dv is not None or stiffness):
                 gq = gq + c * dq(q, v)
@@ -594,20 +606,7 @@ class _Problem:
 
     def _jacobian_batch(self, Z, W, q, v, th, peak):
         nx, K = self.active.size, Z.shape[0]
-        gq = sum(th[:, j : j + 1] for j in self.lin_q) if self.lin_q else np.zeros((th.shape[0], 1))
-        gv = sum(th[:, j : j + 1] for j in self.lin_v) if self.lin_v else np.zeros((th.shape[0], 1))
-        for j, dq, dv, stiffness in self.nl_terms:
-            c = th[:, j : j + 1]
-            if not np.any(c != 0.0):
-                continue
-            if dq is not None and (dv is not None or stiffness):
-                gq = gq + c * dq(q, v)
-                if not stiffness:
-                    gv = gv + c * dv(q, v)
-            else:
-                a, b = self.lib.terms[j].derivatives(q, v)
-                gq = gq + c * a
-                gv = gv + c * b
+        gq, gv = self._derivatives(q, v, th)
         gq = np.broadcast_to(gq, (K, gq.shape[1]))
         gv = np.broadcast_to(gv, (K, gv.shape[1]))
         J = np.zeros((K, self.m, self.m))
