@@ -85,6 +85,14 @@ def _pm(value, stderr) -> str:
     return f"{value:.8g} ± {stderr:.2g} [{ci[0]:.8g}, {ci[1]:.8g}]"
 
 
+def _per_preload(title, results, errors) -> list:
+    """A titled section: each preload's result report, indented, or its error."""
+    lines = [title]
+    for p, r in results.items():
+        lines.append("  " + (r.report().replace("\n", "\n  ") if r is not None else errors.get(p, "-")))
+    return lines + [""]
+
+
 def campaign_report(result) -> str:
     """Text report: groups (Table 5 analogue), damping laws (Table 2), power laws, failures."""
     out = [f"campaign {result.name!r}: {len(result.records)} records, {len(result.failed)} failed",
@@ -92,27 +100,16 @@ def campaign_report(result) -> str:
            f"{result.settings.n_harmonics} harmonics, damping law order {result.settings.damping_order}", ""]
     models = getattr(result, "models", {}) or {}
     if models:
-        out.append("Preload models: one regression over all records of a preload, damping law inside "
-                   "(value ± standard error, 95 % interval)")
-        for p, m in models.items():
-            out.append("  " + (m.report().replace("\n", "\n  ") if m is not None
-                               else result.model_errors.get(p, "-")))
-        out.append("")
+        out += _per_preload("Preload models: one regression over all records of a preload, damping law inside "
+                            "(value ± standard error, 95 % interval)", models, result.model_errors)
     sels = getattr(result, "selections", None) or {}
     if sels or getattr(result, "selection_errors", None):
-        out.append("Model selection per preload (--terms auto; * selected: the simplest model within noise of the best):")
-        for p, sel in sels.items():
-            out.append("  " + (sel.report().replace("\n", "\n  ") if sel is not None
-                               else result.selection_errors.get(p, "-")))
-        out.append("")
+        out += _per_preload("Model selection per preload (--terms auto; * selected: the simplest model within "
+                            "noise of the best):", sels, result.selection_errors)
     adq = getattr(result, "adequacy", None) or {}
     if adq:
-        out.append("Model adequacy per preload (equality of the shared parameters across force levels, records "
-                   "against the preload model, explained fractions):")
-        for p, a in adq.items():
-            out.append("  " + (a.report().replace("\n", "\n  ") if a is not None
-                               else result.adequacy_errors.get(p, "-")))
-        out.append("")
+        out += _per_preload("Model adequacy per preload (equality of the shared parameters across force levels, "
+                            "records against the preload model, explained fractions):", adq, result.adequacy_errors)
     from .backbone_plots import backbone_report_lines
 
     out += backbone_report_lines(result)
