@@ -276,8 +276,13 @@ class _Problem:
         self.theta0 = np.array(model.coefficients, float)
         # derivative polynomials of the amplitude laws (d theta_j / d q_max)
         P_ = np.polynomial.polynomial
+        poly_laws = {name: law for name, law in model.amplitude_laws.items() if isinstance(law, tuple)}
+        # laws that are no polynomial (the micro-slip power law) are objects with value / derivative
+        self.law_objects = tuple(
+            (self.lib.index(name), law) for name, law in model.amplitude_laws.items() if name not in poly_laws
+        )
         self.law_der = tuple(
-            (self.lib.index(name), P_.polyder(np.asarray(poly, float))) for name, poly in model.amplitude_laws.items()
+            (self.lib.index(name), P_.polyder(np.asarray(poly, float))) for name, poly in poly_laws.items()
         )
         # terms with analytic partial derivatives are called directly (same values as
         # TermLibrary.derivatives, without its per-call broadcasting overhead)
@@ -303,9 +308,7 @@ class _Problem:
         self.PED = self.P @ self.ED
         self.kq = abs(float(self.theta0[self.i_q])) if self.i_q is not None else 0.0
         self.D_active = np.ascontiguousarray(D[np.ix_(self.active, self.active)])
-        self.laws = tuple(
-            (self.lib.index(name), tuple(float(c) for c in poly)) for name, poly in model.amplitude_laws.items()
-        )
+        self.laws = tuple((self.lib.index(name), tuple(float(c) for c in poly)) for name, poly in poly_laws.items())
         self.law_der = tuple((j, tuple(float(c) for c in d)) for j, d in self.law_der)
         self.E_ED = np.vstack([self.E, self.ED])  # P diag(c) ED for a constant c (viscous damping)
         self._last_failure = ""
@@ -317,6 +320,8 @@ class _Problem:
         theta = self.theta0.copy()
         for j, poly in self.laws:
             theta[j] = _horner(poly, float(q_max))
+        for j, law in self.law_objects:
+            theta[j] = law.value(float(q_max))
         return theta
 
     def full(self, x):
@@ -449,6 +454,8 @@ class _Problem:
                 d = _horner(dpoly, qm)
                 if d != 0.0:
                     dh += d * self.lib.terms[j].func(q, v)
+            for j, law in self.law_objects:
+                dh += law.derivative(qm) * self.lib.terms[j].func(q, v)
             J[:nx, nx] = self.P @ dh
             peak = ev["peak"]
             J[nx, :nx] = -peak[2] * self.peak_row(peak[1])
@@ -520,6 +527,8 @@ class _Problem:
         th[:] = self.theta0
         for j, poly in self.laws:
             th[:, j] = _horner(poly, qm)
+        for j, law in self.law_objects:
+            th[:, j] = law.value(qm)
         return th
 
     def peak_batch(self, X):
@@ -627,6 +636,8 @@ class _Problem:
                 d = _horner(dpoly, qm)
                 if np.any(d != 0.0):
                     dh += d[:, None] * self.lib.terms[j].func(q, v)
+            for j, law in self.law_objects:
+                dh += law.derivative(qm)[:, None] * self.lib.terms[j].func(q, v)
             J[:, :nx, nx] = dh @ self.P.T
             _, tau, sign = peak
             row = np.zeros((K, nx))
@@ -724,8 +735,8 @@ class _Problem:
         def keq_ceq(A):
             A = np.atleast_1d(A)
             th = np.tile(self.theta0, (A.size, 1))
-            for name, poly in self.model.amplitude_laws.items():
-                th[:, self.lib.index(name)] = P_.polyval(A, poly)
+            for name, law in self.model.amplitude_laws.items():
+                th[:, self.lib.index(name)] = P_.polyval(A, law) if isinstance(law, tuple) else law.value(A)
             q = A[:, None] * sn
             v = (A * omega)[:, None] * cs
             h = np.zeros_like(q)

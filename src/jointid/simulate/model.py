@@ -1,8 +1,9 @@
 """The single-mode model ``q'' + h(q, q') = Q(t)`` used for simulation and re-prediction.
 
 The restoring force is a term library with coefficients.  Any coefficient may instead
-follow a polynomial in the steady-state amplitude ``q_max`` (seed Eq 20 / 26): the
-damping of a steady state then depends on that steady state's own ``q_max``.
+follow a polynomial in the steady-state amplitude ``q_max`` (seed Eq 20 / 26), or the
+micro-slip power law :class:`~jointid.identify.powerlaw.PowerLaw`: the damping of a
+steady state then depends on that steady state's own ``q_max``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..identify.powerlaw import PowerLaw
 from ..identify.terms import TermLibrary, library
 
 __all__ = ["SingleModeModel", "seed_model"]
@@ -31,7 +33,8 @@ class SingleModeModel:
         One value per term.  For a term with an amplitude law the value is ignored.
     amplitude_laws : mapping, optional
         ``{coefficient or term name: (p0, p1, p2, ...)}`` making that coefficient
-        ``p0 + p1 q_max + p2 q_max^2 + ...``.
+        ``p0 + p1 q_max + p2 q_max^2 + ...``, or ``{name: PowerLaw(c0, c1, p)}`` making it
+        ``c0 + c1 q_max^p``.
 
     Examples
     --------
@@ -44,7 +47,7 @@ class SingleModeModel:
 
     terms: TermLibrary
     coefficients: tuple[float, ...]
-    amplitude_laws: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
+    amplitude_laws: Mapping[str, tuple[float, ...] | PowerLaw] = field(default_factory=dict)
 
     def __post_init__(self):
         terms = library(self.terms)
@@ -54,8 +57,11 @@ class SingleModeModel:
             raise ValueError(f"{len(terms)} coefficients expected for {terms.names}, got {len(coefs)}")
         object.__setattr__(self, "coefficients", coefs)
         laws = {}
-        for key, poly in dict(self.amplitude_laws).items():
-            laws[terms[key].coefficient] = tuple(float(p) for p in np.atleast_1d(poly))
+        for key, law in dict(self.amplitude_laws).items():
+            if isinstance(law, PowerLaw):
+                laws[terms[key].coefficient] = law
+            else:
+                laws[terms[key].coefficient] = tuple(float(p) for p in np.atleast_1d(law))
         object.__setattr__(self, "amplitude_laws", MappingProxyType(laws))
 
     @property
@@ -70,15 +76,18 @@ class SingleModeModel:
     def coefficients_at(self, q_max: float) -> np.ndarray:
         """Coefficient vector of a steady state whose amplitude is ``q_max``."""
         theta = np.array(self.coefficients)
-        for name, poly in self.amplitude_laws.items():
-            theta[self.terms.index(name)] = np.polynomial.polynomial.polyval(q_max, poly)
+        for name, law in self.amplitude_laws.items():
+            theta[self.terms.index(name)] = (law.value(q_max) if isinstance(law, PowerLaw)
+                                             else np.polynomial.polynomial.polyval(q_max, law))
         return theta
 
     def amplitude_law_derivative(self, q_max: float) -> np.ndarray:
         """``d theta / d q_max`` (zero for coefficients without a law)."""
         d = np.zeros(len(self.terms))
-        for name, poly in self.amplitude_laws.items():
-            d[self.terms.index(name)] = np.polynomial.polynomial.polyval(q_max, np.polynomial.polynomial.polyder(poly))
+        P = np.polynomial.polynomial
+        for name, law in self.amplitude_laws.items():
+            d[self.terms.index(name)] = (law.derivative(q_max) if isinstance(law, PowerLaw)
+                                         else P.polyval(q_max, P.polyder(law)))
         return d
 
     def restoring_force(self, q, v, q_max: float = 0.0):
@@ -88,7 +97,8 @@ class SingleModeModel:
         return {
             "terms": list(self.terms.names),
             "coefficients": dict(zip(self.terms.coefficient_names, self.coefficients)),
-            "amplitude_laws": {k: list(v) for k, v in self.amplitude_laws.items()},
+            "amplitude_laws": {k: v.summary() if isinstance(v, PowerLaw) else list(v)
+                               for k, v in self.amplitude_laws.items()},
         }
 
 
