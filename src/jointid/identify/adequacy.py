@@ -30,7 +30,6 @@ from scipy import linalg, stats
 from ..conventions import harmonic_index
 from ..errors import IdentificationError
 from .fsm import record_whitenings
-from .model import _expansion
 from .uncertainty import scaled_inverse
 
 __all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equality", "record_adequacy",
@@ -319,8 +318,7 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
     for f, s, w, lab, lv in zip(fits, signals_list, wh, labels, levels):
         if tuple(f.terms) != tuple(model.terms):
             raise IdentificationError(f"record {lab}: its fit has terms {f.terms}, the model {model.terms}")
-        E, _ = _expansion(model.law_orders, f.q_max)
-        theta = E @ model.parameters
+        theta = model.coefficients_at(f.q_max)
         rows = w.rows
         e = rows[:, :p] @ theta - rows[:, p]
         misfit = float(e @ e) / p

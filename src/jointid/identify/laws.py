@@ -349,9 +349,8 @@ class _ModelCycle:
     """
 
     def __init__(self, lib, orders, states):
-        from .model import _expansion
-
-        self.expand = [_expansion(orders, qm)[0] for _, _, _, qm in states]
+        self.orders = orders
+        self.q_max = [qm for _, _, _, qm in states]
         damp = np.array([t.kind == "damping" for t in lib])
         self.unit_energy, self.stiff = [], []
         for qc, vc, omega, _ in states:
@@ -363,8 +362,10 @@ class _ModelCycle:
 
     def __call__(self, theta):
         U, F = [], []
-        for E, ue, S in zip(self.expand, self.unit_energy, self.stiff):
-            th = E @ theta
+        from .model import expand
+
+        for qm, ue, S in zip(self.q_max, self.unit_energy, self.stiff):
+            th = expand(self.orders, qm, theta)[0]
             U.append(float(ue @ th))
             F.append(float(np.max(np.abs(S @ th[~self.damp]))))
         return np.array(U), np.array(F)

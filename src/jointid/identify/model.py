@@ -11,6 +11,12 @@ columns of record ``r`` are its term columns times powers of its ``q_max``: the 
 assembled from each record's reduced factor ``R`` (no new pass over the samples), and the
 covariance is the sandwich of :mod:`jointid.identify.uncertainty`, including the change of
 ``q_max`` with the harmonic fit (envelope theorem).
+
+A law may also be the micro-slip power law ``c0 + c1 q_max^p`` (``{"q'": "power"}``,
+:mod:`jointid.identify.powerlaw`).  Its exponent is fitted by variable projection (the
+other parameters by the same linear least squares at every trial exponent); the
+Jacobian of the model at the solution, with the exponent's column ``c1 q_max^p ln q_max``,
+takes the place of the design matrix in the sandwich covariance.
 """
 
 from __future__ import annotations
@@ -19,21 +25,30 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import optimize
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from .fsm import COND_LIMIT, _check_terms, _ci_text, _pm, own_fits, pooled_inputs, record_whitenings
+from .powerlaw import EXPONENT_BOUNDS, POWER, PowerLaw, is_power
 from .regression import lstsq_from_reduced
 from .terms import library
 from .uncertainty import ci95, sandwich
 
-__all__ = ["PreloadModel", "PreloadForceStateMapping", "law_orders", "parameter_names"]
+__all__ = ["PreloadModel", "PreloadForceStateMapping", "law_orders", "law_size", "parameter_names", "expand",
+           "fit_laws"]
+
+
+def law_size(order) -> int:
+    """Number of parameters of an amplitude law (``order + 1``; 3 for the power law)."""
+    return 3 if is_power(order) else int(order) + 1
 
 
 def law_orders(lib, amplitude_laws=None, damping_order=2) -> tuple:
     """Polynomial order of the amplitude law of every term (0: a constant coefficient).
 
-    ``amplitude_laws`` maps term or coefficient names to orders; by default every
+    ``amplitude_laws`` maps term or coefficient names to orders, or to ``"power"`` for the
+    micro-slip law ``c0 + c1 q_max^p`` (:mod:`jointid.identify.powerlaw`); by default every
     damping-kind term follows a law of ``damping_order`` and the stiffness terms are constant.
     """
     if amplitude_laws is None:
@@ -44,7 +59,10 @@ def law_orders(lib, amplitude_laws=None, damping_order=2) -> tuple:
             i = lib.index(name)
         except KeyError as exc:
             raise IdentificationError(f"amplitude law for {name!r}, which is no term of {lib.names}") from exc
-        if int(order) < 0:
+        if is_power(order):
+            orders[i] = POWER
+            continue
+        if isinstance(order, str) or int(order) < 0:
             raise IdentificationError(f"amplitude-law order of {name!r} must be >= 0, got {order}")
         orders[i] = int(order)
     return tuple(orders)
@@ -56,6 +74,11 @@ def parameter_names(lib, orders) -> tuple:
     ``_1, _2 ...`` for the powers of ``q_max``."""
     names = []
     for t, L in zip(lib, orders):
+        if is_power(L):  # base, coefficient of q_max^p, exponent
+            base = f"{t.coefficient}0" if t.kind == "damping" and t.coefficient.isalpha() else t.coefficient
+            one = f"{t.coefficient}1" if t.kind == "damping" and t.coefficient.isalpha() else f"{t.coefficient}_1"
+            names += [base, one, f"p({t.coefficient})"]
+            continue
         for j in range(L + 1):
             if L == 0:
                 names.append(t.coefficient)
@@ -67,7 +90,9 @@ def parameter_names(lib, orders) -> tuple:
 
 
 def _expansion(orders, q_max):
-    """``E`` (term columns -> model columns) and ``dE/dq_max`` at one amplitude."""
+    """``E`` (term columns -> model columns) and ``dE/dq_max`` at one amplitude (polynomial laws)."""
+    if any(is_power(L) for L in orders):
+        raise IdentificationError("a power law's coefficients depend on its exponent: use expand()")
     p, P = len(orders), sum(L + 1 for L in orders)
     E, dE = np.zeros((p, P)), np.zeros((p, P))
     col = 0
@@ -77,6 +102,131 @@ def _expansion(orders, q_max):
             dE[k, col] = j * q_max ** (j - 1) if j > 0 else 0.0
             col += 1
     return E, dE
+
+
+def expand(orders, q_max, theta):
+    """Term coefficients of a steady state of amplitude ``q_max``, their Jacobian and slope.
+
+    Returns
+    -------
+    coefficients : ndarray, shape (p,)
+        Value of every term coefficient at ``q_max``.
+    E : ndarray, shape (p, P)
+        ``d coefficients / d theta`` (for polynomial laws the matrix of powers of ``q_max``,
+        for a power law ``1, q_max^p, c1 q_max^p ln q_max``).
+    slope : ndarray, shape (p,)
+        ``d coefficients / d q_max``.
+    """
+    theta = np.asarray(theta, float)
+    if not any(is_power(L) for L in orders):
+        E, dE = _expansion(orders, q_max)
+        return E @ theta, E, dE @ theta
+    p, P = len(orders), sum(law_size(L) for L in orders)
+    E, coef, slope = np.zeros((p, P)), np.zeros(p), np.zeros(p)
+    col = 0
+    for k, L in enumerate(orders):
+        n = law_size(L)
+        if is_power(L):
+            law = PowerLaw(*theta[col:col + 3])
+            coef[k], slope[k] = law.value(q_max), law.derivative(q_max)
+            E[k, col:col + 3] = law.jacobian(q_max)
+        else:
+            v = float(q_max) ** np.arange(n)
+            E[k, col:col + n] = v
+            coef[k] = v @ theta[col:col + n]
+            slope[k] = (np.arange(1, n) * v[:-1]) @ theta[col + 1:col + n] if n > 1 else 0.0
+        col += n
+    return coef, E, slope
+
+
+def _exponent_positions(orders):
+    pos, col = [], 0
+    for L in orders:
+        if is_power(L):
+            pos.append(col + 2)
+        col += law_size(L)
+    return pos
+
+
+def fit_laws(term_rows, rhs, q_max, orders, n_samples):
+    """Least squares of a preload model over records given as weighted reduced rows.
+
+    Parameters
+    ----------
+    term_rows, rhs : sequence of arrays
+        Record ``r``'s rows in the term columns ``(n_r, p)`` and its right-hand side ``(n_r,)``.
+    q_max : sequence of float
+    orders : tuple
+        Law of every term (:func:`law_orders`).
+    n_samples : int
+
+    Returns
+    -------
+    theta : ndarray
+    condition_number : float
+        Of the linear least squares (at the fitted exponents).
+    J : ndarray
+        Jacobian of the stacked rows with respect to ``theta`` (the design matrix for
+        polynomial laws).
+
+    Notes
+    -----
+    Power-law exponents are found by variable projection: for given exponents the model
+    is linear in the other parameters; the residual sum is minimised over the exponents
+    (a coarse grid in ``EXPONENT_BOUNDS``, then Nelder-Mead within the bounds).
+    """
+    b = np.concatenate(rhs)
+    pos = _exponent_positions(orders)
+    P = sum(law_size(L) for L in orders)
+    lin = [i for i in range(P) if i not in pos]
+
+    # at fixed exponents a power law is linear: the columns 1 and q_max^p (an order-1 law
+    # with q_max^p in place of q_max)
+    lin_orders = tuple(1 if is_power(L) else L for L in orders)
+    power_cols = [(k, int(np.cumsum([law_size(L) for L in lin_orders])[k]) - 1)
+                  for k, L in enumerate(orders) if is_power(L)]
+
+    def design(exps):
+        out = []
+        for R, q in zip(term_rows, q_max):
+            E = _expansion(lin_orders, q)[0]
+            for (k, j), c in zip(power_cols, exps):
+                E[k, j] = abs(q) ** c
+            out.append(R @ E)
+        return np.vstack(out)
+
+    def solve(exps):
+        A = design(exps)
+        res = lstsq_from_reduced(A, b, n_samples)
+        r = A @ res.coefficients - b
+        return res, A, float(r @ r)
+
+    if not pos:
+        res, A, _ = solve(())
+        return res.coefficients, res.condition_number, A
+    lo, hi = EXPONENT_BOUNDS
+
+    def cost(x):
+        c = solve(np.clip(x, lo, hi))[2]
+        return c if np.isfinite(c) else np.inf
+
+    grid = np.geomspace(lo, hi, 13 if len(pos) == 1 else 7)
+    starts = np.array(np.meshgrid(*[grid] * len(pos), indexing="ij")).reshape(len(pos), -1).T
+    x0 = min(starts, key=cost)
+    c0 = cost(x0)
+    sol = optimize.minimize(cost, x0, method="Nelder-Mead", bounds=[(lo, hi)] * len(pos),
+                            options={"xatol": 1e-7, "fatol": 1e-12 * max(c0, 1e-300), "maxiter": 2000 * len(pos)})
+    exps = np.clip(sol.x if sol.fun <= c0 else x0, lo, hi)
+    res, _, _ = solve(exps)
+    theta = np.zeros(P)
+    theta[pos] = exps
+    theta[lin] = res.coefficients
+    J = np.vstack([R @ expand(orders, q, theta)[1] for R, q in zip(term_rows, q_max)])
+    return theta, res.condition_number, J
+
+
+def _law_text(coefficient, order) -> str:
+    return f"{coefficient} power law" if is_power(order) else f"{coefficient} order {order}"
 
 
 @dataclass(frozen=True)
@@ -128,25 +278,34 @@ class PreloadModel:
 
     def _law_slice(self, coefficient):
         k = self.coefficient_names.index(coefficient)
-        start = sum(L + 1 for L in self.law_orders[:k])
-        return slice(start, start + self.law_orders[k] + 1)
+        start = sum(law_size(L) for L in self.law_orders[:k])
+        return slice(start, start + law_size(self.law_orders[k]))
 
     def law(self, coefficient="c"):
-        """``(coefficients, stderr, covariance)`` of ``coefficient(q_max)``, lowest power first."""
+        """``(coefficients, stderr, covariance)`` of ``coefficient(q_max)``, lowest power first
+        (for a power law ``c0, c1, p`` of ``c0 + c1 q_max^p``)."""
         s = self._law_slice(coefficient)
         return self.parameters[s].copy(), self.stderr[s].copy(), self.covariance[s, s].copy()
 
+    def law_kind(self, coefficient="c") -> str:
+        """``"power"`` or ``"polynomial"`` (also for a constant coefficient)."""
+        return POWER if is_power(self.law_orders[self.coefficient_names.index(coefficient)]) else "polynomial"
+
     def coefficients_at(self, q_max) -> np.ndarray:
         """Term coefficients of a steady state of amplitude ``q_max``."""
-        E, _ = _expansion(self.law_orders, float(q_max))
-        return E @ self.parameters
+        return expand(self.law_orders, float(q_max), self.parameters)[0]
 
     def coefficient_at(self, coefficient, q_max):
         """``(value, stderr)`` of one term coefficient at the amplitudes ``q_max``."""
         s = self._law_slice(coefficient)
         q = np.atleast_1d(np.asarray(q_max, float))
-        V = np.vander(q, s.stop - s.start, increasing=True)
-        val = V @ self.parameters[s]
+        if self.law_kind(coefficient) == POWER:
+            law = PowerLaw(*self.parameters[s])
+            V = np.array([law.jacobian(x) for x in q])
+            val = law.value(q)
+        else:
+            V = np.vander(q, s.stop - s.start, increasing=True)
+            val = V @ self.parameters[s]
         se = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", V, self.covariance[s, s], V), 0.0, None))
         return (val, se) if np.ndim(q_max) else (float(val[0]), float(se[0]))
 
@@ -186,7 +345,8 @@ class PreloadModel:
         return {
             "preload": self.preload,
             "terms": list(self.terms),
-            "amplitude_laws": {c: int(L) for c, L in zip(self.coefficient_names, self.law_orders) if L > 0},
+            "amplitude_laws": {c: (POWER if is_power(L) else int(L))
+                               for c, L in zip(self.coefficient_names, self.law_orders) if law_size(L) > 1},
             "omega1": self.omega1,
             "omega1_stderr": self.omega1_stderr,
             "omega1_ci95": ci95(self.omega1, self.omega1_stderr),
@@ -211,12 +371,12 @@ class PreloadModel:
         }
 
     def report(self) -> str:
-        laws = {c: L for c, L in zip(self.coefficient_names, self.law_orders) if L > 0}
+        laws = {c: L for c, L in zip(self.coefficient_names, self.law_orders) if law_size(L) > 1}
         head = f"preload {self.preload}: " if self.preload is not None else ""
         lines = [
             f"{head}one model over {self.n_records} records (q_max {np.min(self.q_max):.4g} .. "
             f"{np.max(self.q_max):.4g}; condition number {self.condition_number:.3g}"
-            + (f"; laws in q_max: {', '.join(f'{c} order {L}' for c, L in laws.items())})" if laws else ")")
+            + (f"; laws in q_max: {', '.join(_law_text(c, L) for c, L in laws.items())})" if laws else ")")
         ]
         for n, v, s in zip(self.parameter_names, self.parameters, self.stderr):
             lines.append(f"  {n:>12} = {_pm(v, s)}{_ci_text(v, s)}")
@@ -296,42 +456,41 @@ class PreloadForceStateMapping:
         orders = law_orders(lib, self.amplitude_laws, self.damping_order)
         names = parameter_names(lib, orders)
         P = len(names)
-        if len(sigs) < max(orders) + 1:
+        need = max(law_size(L) for L in orders)
+        if len(sigs) < need:
             raise IdentificationError(
-                f"{context}an amplitude law of order {max(orders)} needs at least {max(orders) + 1} records, got {len(sigs)}"
+                f"{context}an amplitude law of {need} parameters needs at least {need} records, got {len(sigs)}"
             )
         fits = own_fits(lib, sigs, fits, self.filtered)
         p = len(lib)
         q_max = np.array([f.q_max for f in fits])
-        Es = [_expansion(orders, q) for q in q_max]
         n_total = int(sum(f.n_samples for f in fits))
-
-        def solve(wh):
-            rows = [w.rows for w in wh]
-            A = np.vstack([r[:, :p] @ E for r, (E, _) in zip(rows, Es)])
-            b = np.concatenate([r[:, p] for r in rows])
-            return A, lstsq_from_reduced(A, b, n_total)
-
         wh = record_whitenings(fits, self.weighting)
-        A, res = solve(wh)
+        rows = [w.rows for w in wh]
+        theta, cond, A = fit_laws([r[:, :p] for r in rows], [r[:, p] for r in rows], q_max, orders, n_total)
         weights = np.array([w.scalar for w in wh])
-        theta = res.coefficients
         M = A.T @ A
         V = np.zeros((P, P))
-        for w, f, (E, dE) in zip(wh, fits, Es):
-            V += E.T @ w.score_covariance(f.scores.covariance(E @ theta, dE @ theta)) @ E
+        for w, f, q in zip(wh, fits, q_max):
+            coef, E, slope = expand(orders, q, theta)
+            V += E.T @ w.score_covariance(f.scores.covariance(coef, slope)) @ E
         cov = sandwich(M, V)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         warn = []
-        if not np.isfinite(res.condition_number) or res.condition_number > self.cond_limit:
-            warn.append(f"{context}preload model too ill-conditioned (condition number {res.condition_number:.3g} > "
+        if not np.isfinite(cond) or cond > self.cond_limit:
+            warn.append(f"{context}preload model too ill-conditioned (condition number {cond:.3g} > "
                         f"{self.cond_limit:.3g}); its parameters are not resolved")
+        lo, hi = EXPONENT_BOUNDS
+        for n, v in zip(names, theta):
+            if n.startswith("p(") and not lo * 1.001 < v < hi / 1.001:
+                warn.append(f"{context}power-law exponent {n} = {v:.3g} at the bound of [{lo:g}, {hi:g}]: the "
+                            f"power law does not describe these amplitudes")
         for w_ in warn:
             warnings.warn(w_, IllConditionedWarning, stacklevel=3)
         self.library_ = lib
         self.coef_, self.stderr_, self.covariance_ = theta, se, cov
         self.result_ = PreloadModel(
             self.preload, lib.names, lib.coefficient_names, orders, names, theta, se, cov, q_max,
-            np.array([s.frequency_hz for s in sigs]), weights, res.condition_number, n_total, tuple(warn),
+            np.array([s.frequency_hz for s in sigs]), weights, cond, n_total, tuple(warn),
         )
         return self

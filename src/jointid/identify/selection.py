@@ -41,7 +41,8 @@ from scipy import linalg
 from .._blas import single_threaded
 from ..errors import IdentificationError, JointidError, JointidWarning
 from .fsm import own_fits, pooled_inputs, record_whitenings
-from .model import PreloadForceStateMapping, _expansion, law_orders, parameter_names
+from .model import PreloadForceStateMapping, expand, fit_laws, law_orders, law_size, parameter_names
+from .powerlaw import POWER, PowerLaw, is_power
 from .regression import lstsq_from_reduced
 from .terms import TermLibrary, library
 
@@ -93,10 +94,20 @@ class Candidate:
 
     @property
     def n_parameters(self) -> int:
-        return int(sum(L + 1 for L in self.orders()))
+        return int(sum(law_size(L) for L in self.orders()))
+
+    @property
+    def n_exponents(self) -> int:
+        """Power-law exponents among the parameters (nonlinear in the model)."""
+        return int(sum(is_power(L) for L in self.orders()))
+
+    def law_specs(self) -> dict:
+        """``{term: order or "power"}`` as written in ``results.json``."""
+        return {k: (POWER if is_power(v) else int(v)) for k, v in self.amplitude_laws}
 
     def describe(self) -> str:
-        laws = ", ".join(f"{k}(q_max) order {v}" for k, v in self.amplitude_laws if v > 0)
+        laws = ", ".join(f"{k}(q_max) power law" if is_power(v) else f"{k}(q_max) order {v}"
+                         for k, v in self.amplitude_laws if is_power(v) or v > 0)
         return self.terms + (f"; {laws}" if laws else "")
 
 
@@ -108,7 +119,13 @@ def _family(name, terms, damping_order=2, stiffness_order=0):
 
 
 def default_candidates(damping_order=2) -> tuple:
-    """The physically motivated families, each with the damping law ``c(q_max)`` of ``damping_order``."""
+    """The physically motivated families, each with the damping law ``c(q_max)`` of ``damping_order``.
+
+    The micro-slip families carry the power laws of an Iwan joint instead
+    (:mod:`jointid.identify.powerlaw`): ``omega^2(q_max) = omega1^2 + s q_max^p'`` and
+    ``c(q_max) = c0 + c1 q_max^p``, alone or beside a cubic spring (the joint law of
+    :func:`jointid.identify.jointlaw.fit_iwan` with its cubic part).
+    """
     return (
         _family("linear", "q + q'", damping_order),
         _family("cubic", "q - q^3 + q'", damping_order),
@@ -117,6 +134,8 @@ def default_candidates(damping_order=2) -> tuple:
         _family("|q|q", "q + |q|q + q'", damping_order),
         _family("Coulomb + viscous", "q + q' + sign(q')", damping_order),
         _family("amplitude-dependent stiffness", "q + q'", damping_order, 2),
+        _family("micro-slip", "q + q'", POWER, POWER),
+        _family("micro-slip + cubic", "q - q^3 + q'", POWER, POWER),
     )
 
 
@@ -188,7 +207,7 @@ class CandidateScore:
         return {
             "name": self.name,
             "terms": self.candidate.terms,
-            "amplitude_laws": {k: int(v) for k, v in self.candidate.amplitude_laws},
+            "amplitude_laws": self.candidate.law_specs(),
             "n_parameters": self.n_parameters,
             "parameter_names": list(self.parameter_names),
             "parameters": None if self.parameters is None else [float(v) for v in self.parameters],
@@ -283,7 +302,7 @@ class SelectionResult:
             "selected": self.selected,
             "verdict": f"selected {self.selected}: {self.candidate.describe()}",
             "selected_terms": self.candidate.terms,
-            "selected_amplitude_laws": {k: int(v) for k, v in self.candidate.amplitude_laws},
+            "selected_amplitude_laws": self.candidate.law_specs(),
             "criterion": self.criterion,
             "delta": float(self.delta),
             "rule": (f"fewest parameters among the models with {self.criterion.upper()} within {self.delta:g} of the "
@@ -375,31 +394,21 @@ class _Space:
         except KeyError as exc:
             raise IdentificationError(f"candidate term not in the common library {self.lib.names}: {exc}") from exc
 
-    def design(self, cols, orders, idx):
-        """Stacked weighted rows ``A theta ~ b`` of the records ``idx``."""
-        A, b = [], []
-        for i in idx:
-            r = self.records[i]
-            E, _ = _expansion(orders, r.q_max)
-            A.append(r.rows[:, cols] @ E)
-            b.append(r.rows[:, self.p])
-        return np.vstack(A), np.concatenate(b)
-
     def residuals(self, cols, orders, theta, idx):
         """Weighted residual sum of every record of ``idx``."""
         out = []
         for i in idx:
             r = self.records[i]
-            E, _ = _expansion(orders, r.q_max)
-            e = r.rows[:, cols] @ (E @ theta) - r.rows[:, self.p]
+            e = r.rows[:, cols] @ expand(orders, r.q_max, theta)[0] - r.rows[:, self.p]
             out.append(float(e @ e))
         return np.array(out)
 
     def fit(self, cols, orders, idx):
-        A, b = self.design(cols, orders, idx)
-        n = int(sum(self.records[i].fit.n_samples for i in idx))
-        res = lstsq_from_reduced(A, b, n)
-        return res.coefficients, res.condition_number, A
+        """``(theta, condition number, Jacobian of the stacked weighted rows)`` over the records ``idx``."""
+        recs = [self.records[i] for i in idx]
+        n = int(sum(r.fit.n_samples for r in recs))
+        return fit_laws([r.rows[:, cols] for r in recs], [r.rows[:, self.p] for r in recs],
+                        [r.q_max for r in recs], orders, n)
 
     def covariance(self, cols, orders, theta, A, idx):
         """Sandwich covariance of ``theta`` (score covariances of the common library)."""
@@ -409,12 +418,12 @@ class _Space:
         V = np.zeros((P, P))
         for i in idx:
             r = self.records[i]
-            E, dE = _expansion(orders, r.q_max)
+            coef, E, slope = expand(orders, r.q_max, theta)
             Ec = np.zeros((self.p, P))
-            dEc = np.zeros((self.p, P))
             Ec[cols] = E
-            dEc[cols] = dE
-            Vs = r.whitening.score_covariance(r.fit.scores.covariance(Ec @ theta, dEc @ theta))
+            cc, sc = np.zeros(self.p), np.zeros(self.p)
+            cc[cols], sc[cols] = coef, slope
+            Vs = r.whitening.score_covariance(r.fit.scores.covariance(cc, sc))
             V += Ec.T @ Vs @ Ec
         return sandwich(A.T @ A, V)
 
@@ -425,12 +434,14 @@ def single_mode_model(lib, orders, theta):
 
     coefs, laws, k = [], {}, 0
     for t, L in zip(lib, orders):
-        if L == 0:
+        n = law_size(L)
+        if n == 1:
             coefs.append(float(theta[k]))
         else:
             coefs.append(0.0)
-            laws[t.coefficient] = tuple(float(x) for x in theta[k : k + L + 1])
-        k += L + 1
+            laws[t.coefficient] = (PowerLaw(*theta[k:k + 3]) if is_power(L)
+                                   else tuple(float(x) for x in theta[k : k + L + 1]))
+        k += n
     return SingleModeModel(lib, tuple(coefs), laws)
 
 
@@ -471,7 +482,8 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
     cov = space.covariance(cols, orders, theta, A, all_idx)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     unresolved = tuple(n for n, v, s, (t, j) in zip(names, theta, se, _param_terms(lib, orders))
-                       if (t.name not in ("q", "q'") or (t.name == "q" and j > 0)) and not (abs(v) > RESOLVED_T * s))
+                       if j is not None and (t.name not in ("q", "q'") or (t.name == "q" and j > 0))
+                       and not (abs(v) > RESOLVED_T * s))
     kw = dict(parameter_names=names, parameters=theta, stderr=se, chi2=chi2, dof=space.nu - P, aic=aic, bic=bic,
               unresolved=unresolved, condition_number=float(cond))
     if criterion_only or len(level_values) < 2:
@@ -503,8 +515,8 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
 
 
 def _param_terms(lib, orders):
-    """``(term, power of q_max)`` of every parameter."""
-    return [(t, j) for t, L in zip(lib, orders) for j in range(L + 1)]
+    """``(term, power of q_max)`` of every parameter (a power law: 0, 1 and ``None`` for its exponent)."""
+    return [(t, j) for t, L in zip(lib, orders) for j in ((0, 1, None) if is_power(L) else range(L + 1))]
 
 
 def _pick(scores, criterion, delta):
@@ -527,7 +539,8 @@ def _pick(scores, criterion, delta):
         b = min(cv, key=lambda s: s.cv_force)
         limit = b.cv_force + (b.cv_force_se if np.isfinite(b.cv_force_se) else 0.0)
         near = [s for s in cv if s.cv_force <= limit]
-    return min(near, key=lambda s: (s.n_parameters, getattr(s, criterion))).name
+    # equal parameter counts: a model linear in its parameters before one with fitted exponents
+    return min(near, key=lambda s: (s.n_parameters, s.candidate.n_exponents, getattr(s, criterion))).name
 
 
 def _prepare(signals_list, levels, candidate_libs, weighting, filtered, fits):
@@ -681,7 +694,7 @@ def forward_selection(signals_list, levels, *, base="q + q'", pool=FORWARD_POOL,
 
 def broadband_candidates(damping_order=None) -> tuple:
     """The default families without amplitude laws (a broadband record has no single ``q_max``)."""
-    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if c.name != "amplitude-dependent stiffness")
+    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if "q" not in c.laws)
 
 
 @single_threaded
