@@ -198,3 +198,23 @@ def test_silverbox_multilevel_selection():
     assert best.cv_force < cubic.cv_force / 3 and best.bic < cubic.bic - 1e4
     k3 = best.parameters[best.parameter_names.index("k3")]
     assert k3 < 0  # hardening (seed sign convention)
+
+
+def test_identify_auto_repredicts_with_the_selected_model(tmp_path):
+    """terms='auto': each group's FRF is re-predicted with its preload's selected model (terms and laws)."""
+    cfg = paper_config(n_frequencies=5, fs=2000.0, periods=20, noise=0.005, seed=4, write_frequency=True,
+                       n_harmonics=9)
+    cfg["excitation"]["force_levels"] = [0.5, 1.0, 2.0]
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "campaign")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify_campaign(camp, terms="auto")
+    (sel,) = [s for s in res.selections.values() if s is not None]
+    m = sel.model
+    assert len(res.repredictions) == 3
+    for r in res.repredictions:
+        assert tuple(r.model.terms.names) == tuple(m.terms)
+        # the preload model's one damping law (not the two-step law of seed Eq 26) and its omega1
+        for q in (1e-4, 1e-3):
+            assert np.allclose(r.model.coefficients_at(q), m.coefficients_at(q), rtol=1e-12, atol=0)
+    assert json.loads(json.dumps(res.summary()))["reprediction"]["groups"][0]["peak_predicted"]

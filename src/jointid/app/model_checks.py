@@ -9,7 +9,8 @@
 * :func:`identify_auto` is ``identify_campaign`` with the terms chosen by the data: a
   first pass with the seed's terms gives the records' state signals, the selection per
   preload picks the model, and the campaign is identified again with the selected terms
-  (the union over the preloads), each preload's model being its own selection.
+  (the union over the preloads), each preload's model being its own selection; the
+  groups' FRFs are re-predicted with the selected models.
 """
 
 from __future__ import annotations
@@ -110,8 +111,9 @@ def identify_auto(campaign, settings):
     The records are processed with the seed's terms, the candidate models of each preload
     are ranked (:func:`campaign_selection`), and the campaign is identified again with the
     selected terms; each preload's model (results.json ``models``) is its selected model
-    with its amplitude laws.  A campaign where no preload can be selected (a single force
-    level) keeps the seed's terms and says why under ``selection``.
+    with its amplitude laws, and the groups' FRFs are re-predicted with it.  A campaign where
+    no preload can be selected (a single force level) keeps the seed's terms and says why
+    under ``selection``.
     """
     from ..io.campaign import Campaign, load_campaign
     from .workflow import identify_campaign
@@ -125,14 +127,19 @@ def identify_auto(campaign, settings):
     for e in errors.values():
         warnings.warn(e, JointidWarning, stacklevel=3)
     terms = _union_terms(selections)
-    result = identify_campaign(campaign, replace(settings, terms=terms))
+    result = identify_campaign(campaign, replace(settings, terms=terms, repredict=False))
     models = dict(result.models)
     for p, sel in selections.items():
         if sel is not None and sel.model is not None:
             models[p] = sel.model
     result = replace(result, models=models, selections=selections, selection_errors=errors)
     adequacy, adequacy_errors = campaign_adequacy(result)
-    return replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
+    result = replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
+    if settings.repredict:  # with the selected models (jointid.app.reprediction.identified_model)
+        from .reprediction import loop_errors, repredict_campaign
+
+        result = replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
+    return result
 
 
 def silverbox_multilevel_selection(levels=None, *, skip_periods=5, criterion="bic"):

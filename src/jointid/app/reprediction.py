@@ -181,12 +181,23 @@ class Reprediction:
 
 
 def identified_model(result, group):
-    """The group's identified single-mode model (pooled ``omega1``, ``k3``; the preload's ``c(q_max)``).
+    """The group's identified single-mode model.
 
-    Returns ``None`` when the group has no pooled fit or its preload no damping law.
+    With the terms chosen by the data (``terms="auto"``) the model selected for the group's
+    preload: its terms and amplitude laws, fitted over all records of the preload
+    (results.json ``selection``).  Otherwise the group's pooled ``omega1``, ``k3`` with the
+    preload's ``c(q_max)``.  Returns ``None`` when the group has no pooled fit or its
+    preload no damping law.
     """
     from ..simulate.model import SingleModeModel
 
+    selection = (getattr(result, "selections", None) or {}).get(group.preload)
+    if selection is not None and selection.model is not None:
+        from ..identify.selection import single_mode_model
+        from ..identify.terms import library
+
+        m = selection.model
+        return single_mode_model(library(list(m.terms)), m.law_orders, m.parameters)
     law = result.damping_laws.get(group.preload)
     if group.pooled is None or law is None or not np.isfinite(group.pooled.omega1):
         return None
