@@ -51,7 +51,14 @@ def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, l
     from ..identify.terms import library
 
     lib = library(s["terms"])
-    orders = {lib[k].coefficient: int(v) for k, v in (s.get("amplitude_laws") or {}).items()}
+    laws_spec = s.get("amplitude_laws") or {}
+    power = [k for k, v in laws_spec.items() if isinstance(v, str)]
+    if power:
+        from ..errors import IdentificationError
+
+        raise IdentificationError(f"preload {s.get('preload')}: no model backbone for the power law(s) of "
+                                  f"{', '.join(power)} (model_backbone takes polynomial laws)")
+    orders = {lib[k].coefficient: int(v) for k, v in laws_spec.items()}
     params = np.asarray(s["parameters"], float)
     cov = None if s.get("covariance") is None else np.asarray(s["covariance"], float)
     # the model's parameters run term by term (laws expanded in place); the backbone's
