@@ -23,11 +23,17 @@ external harmonic-balance toolbox for the same curve (12.2 times the reference p
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import atexit
+import importlib
+import io
 import pathlib
+import shutil
 import subprocess
 import sys
+import tarfile
+import tempfile
 import time
+import types
 import warnings
 
 import numpy as np
@@ -37,8 +43,9 @@ from jointid.signal.harmonics import steady_state_signals
 from jointid.simulate.hbm import frequency_response, steady_state
 from jointid.simulate.model import SingleModeModel, seed_model
 
-#: The last commit before the speed work: its harmonics.py and hbm.py are the reference path.
-REFERENCE = "db95f19"
+#: The last commit before the speed work: its package is the reference path.
+REFERENCE = "fd13467"
+REFERENCE_PACKAGE = "_jointid_reference"
 #: Reference figures (CPU ms, median of 7) recorded on the 2-core machine, used without git.
 RECORDED = {"given": 259.0, "estimated": 270.0, "sweep": 141.0, "curve": 53.0}
 #: An external harmonic-balance toolbox on the same curve, and the reference path then.
@@ -46,7 +53,8 @@ EXTERNAL_CURVE_MS, EXTERNAL_REFERENCE_MS = 648.0, 53.0
 
 #: The named benchmark curve: seed Duffing, c fixed, F = 1, harmonics 0..9, 128 samples.
 SEED_DUFFING_CURVE = {
-    "model": SingleModeModel("q + -q^3 + q'", (170.0**2, 5e6, 0.5)),
+    "terms": "q + -q^3 + q'",
+    "coefficients": (170.0**2, 5e6, 0.5),
     "force_amplitude": 1.0,
     "omega_range": (160.0, 180.0),
     "n_harmonics": 9,
@@ -67,27 +75,29 @@ def cpu_median(fn, repeat):
     return float(np.median(times))
 
 
-def reference_modules():
-    """``(harmonics, hbm)`` modules of ``REFERENCE``, or ``None`` without git."""
-    mods = []
-    for name, path, package in (
-        ("harmonics", "src/jointid/signal/harmonics.py", "jointid.signal"),
-        ("hbm", "src/jointid/simulate/hbm.py", "jointid.simulate"),
-    ):
-        try:
-            src = subprocess.run(
-                ["git", "show", f"{REFERENCE}:{path}"], cwd=ROOT, capture_output=True, text=True, check=True
-            ).stdout
-        except (OSError, subprocess.CalledProcessError):
-            return None
-        full = f"{package}._reference_{name}"
-        spec = importlib.util.spec_from_loader(full, loader=None)
-        mod = importlib.util.module_from_spec(spec)
-        mod.__package__ = package
-        sys.modules[full] = mod  # dataclasses look their module up
-        exec(compile(src, f"{REFERENCE}:{path}", "exec"), mod.__dict__)  # noqa: S102 (the project's own history)
-        mods.append(mod)
-    return tuple(mods)
+def reference_package():
+    """The modules ``harmonics``, ``fsm``, ``hbm`` and ``model`` of release ``REFERENCE`` (``None`` without git).
+
+    The whole package of that release is unpacked into a temporary folder and imported
+    under another name, so the reference path runs its own code from end to end.
+    """
+    try:
+        archive = subprocess.run(
+            ["git", "archive", REFERENCE, "src/jointid"], cwd=ROOT, capture_output=True, check=True
+        ).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="jointid-reference-"))
+    atexit.register(shutil.rmtree, tmp, True)
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tmp, filter="data")
+    (tmp / "src" / "jointid").rename(tmp / REFERENCE_PACKAGE)
+    sys.path.insert(0, str(tmp))
+    return types.SimpleNamespace(
+        **{name: importlib.import_module(f"{REFERENCE_PACKAGE}.{path}")
+           for name, path in (("harmonics", "signal.harmonics"), ("fsm", "identify.fsm"), ("hbm", "simulate.hbm"),
+                              ("model", "simulate.model"))}
+    )
 
 
 def record(n=1_000_000, fs=20000.0):
@@ -120,7 +130,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=7, help="timed runs per case (median)")
     args = ap.parse_args(argv)
     rep = args.repeat
-    ref = reference_modules()
+    ref = reference_package()
     ref_note = f"reference {REFERENCE}" if ref is not None else "recorded reference"
     warnings.simplefilter("ignore")
 
@@ -129,16 +139,21 @@ def main(argv=None):
     stream = cpu_median(lambda: float(np.sum(Q)) + float(np.sum(a)) + float(np.sum(t)), rep)
     print(f"record: {t.size} samples, 1 % noise; numpy streaming the arrays: {stream * 1e3:.2f} ms")
 
-    def chain(sig_fn, freq):
-        return lambda: ForceStateMapping().fit(sig_fn(t, Q, a, frequency_hz=freq, n_harmonics=5))
+    def chain(pkg, freq):
+        sig_fn, fsm = pkg.steady_state_signals, pkg.ForceStateMapping
+        return lambda: fsm().fit(sig_fn(t, Q, a, frequency_hz=freq, n_harmonics=5))
+
+    new_pkg = types.SimpleNamespace(steady_state_signals=steady_state_signals, ForceStateMapping=ForceStateMapping)
+    ref_pkg = (types.SimpleNamespace(steady_state_signals=ref.harmonics.steady_state_signals,
+                                     ForceStateMapping=ref.fsm.ForceStateMapping) if ref is not None else None)
 
     res = {}
     for key, freq, goal in (("given", f, 60.0), ("estimated", None, 80.0)):
-        new = cpu_median(chain(steady_state_signals, freq), rep)
-        old = (cpu_median(chain(ref[0].steady_state_signals, freq), rep) if ref is not None
+        new = cpu_median(chain(new_pkg, freq), rep)
+        old = (cpu_median(chain(ref_pkg, freq), rep) if ref is not None
                else RECORDED[key] / 1e3)
         sig_new = cpu_median(lambda f=freq: steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
-        sig_old = (cpu_median(lambda f=freq: ref[0].steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
+        sig_old = (cpu_median(lambda f=freq: ref.harmonics.steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
                    if ref is not None else None)
         res[key] = new
         label = "frequency given and checked" if key == "given" else "frequency estimated"
@@ -152,17 +167,20 @@ def main(argv=None):
     model = seed_model()
     omegas = np.linspace(160.0, 180.0, 401)
     sweep = cpu_median(lambda: frequency_response(model, 1.0, omegas), rep)
-    sweep_old = (cpu_median(lambda: ref[1].frequency_response(model, 1.0, omegas), rep) if ref is not None
+    ref_model = ref.model.seed_model() if ref is not None else None
+    sweep_old = (cpu_median(lambda: ref.hbm.frequency_response(ref_model, 1.0, omegas), rep) if ref is not None
                  else RECORDED["sweep"] / 1e3)
     row("401-point sweep, seed model, c(q_max) closure", sweep, sweep_old, ref_note, RECORDED["sweep"], 40.0)
 
     c = SEED_DUFFING_CURVE
     kw = {"omega_range": c["omega_range"], "n_harmonics": c["n_harmonics"], "n_time": c["n_time"]}
-    curve = frequency_response(c["model"], c["force_amplitude"], **kw)
-    cont = cpu_median(lambda: frequency_response(c["model"], c["force_amplitude"], **kw), rep)
+    duffing = SingleModeModel(c["terms"], c["coefficients"])
+    curve = frequency_response(duffing, c["force_amplitude"], **kw)
+    cont = cpu_median(lambda: frequency_response(duffing, c["force_amplitude"], **kw), rep)
     if ref is not None:
-        cont_old = cpu_median(lambda: ref[1].frequency_response(c["model"], c["force_amplitude"], **kw), rep)
-        n_old = len(ref[1].frequency_response(c["model"], c["force_amplitude"], **kw))
+        ref_duffing = ref.model.SingleModeModel(c["terms"], c["coefficients"])
+        cont_old = cpu_median(lambda: ref.hbm.frequency_response(ref_duffing, c["force_amplitude"], **kw), rep)
+        n_old = len(ref.hbm.frequency_response(ref_duffing, c["force_amplitude"], **kw))
     else:
         cont_old, n_old = RECORDED["curve"] / 1e3, 88
     row(f"SEED_DUFFING_CURVE continuation ({len(curve)} points)", cont, cont_old, ref_note, RECORDED["curve"], 21.6)

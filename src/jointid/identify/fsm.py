@@ -25,9 +25,18 @@ import numpy as np
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from ..signal.harmonics import StateSignals
-from .regression import LstsqResult, lstsq_from_reduced, pooled_solve, reduce_blocks
+from .regression import LstsqResult, lstsq_from_reduced, pooled_solve
 from .terms import TermLibrary, library
-from .uncertainty import PooledCovariance, RecordScores, ci95, pooled_covariance, record_scores, sandwich, whitening
+from .uncertainty import (
+    PooledCovariance,
+    RecordScores,
+    ci95,
+    pooled_covariance,
+    record_pass,
+    reduced_factor,
+    sandwich,
+    whitening,
+)
 
 __all__ = [
     "RecordFit",
@@ -41,23 +50,6 @@ __all__ = [
 COND_LIMIT = 1e8
 #: A nonlinear stiffness coefficient closer to zero than this many standard errors is "not resolved".
 RESOLVED_T = 3.0
-
-
-def _reduced(lib, signals, filtered):
-    """``R`` of ``[X, y_fit, y_raw]`` for one record: fitted and unfiltered restoring force.
-
-    The record is streamed block by block, so a long record never builds its full
-    regression matrix.
-    """
-
-    def blocks():
-        for sl, q, v, a_fit in signals.blocks():
-            Q = signals.force[sl]
-            y_raw = Q - signals.accel_measured[sl]
-            y_fit = Q - a_fit if filtered else y_raw
-            yield np.column_stack([lib.evaluate(q, v), y_fit, y_raw])
-
-    return reduce_blocks(blocks, len(lib)), signals.t.size
 
 
 def _named(names, coefficients, name, transform=None):
@@ -99,8 +91,8 @@ def _omega_score(lib, signals, filtered, R, var_omega):
         series, rms = fit_harmonics(signals.t, signals.accel_measured, w, signals.acceleration.n_harmonics,
                                     t0=signals.acceleration.t0)
         s = replace(signals, acceleration=series, frequency_hz=w / (2 * np.pi), accel_residual_rms=rms)
-        Rw, n = _reduced(lib, s, filtered)
-        thetas.append(lstsq_from_reduced(Rw[:, :p], Rw[:, p], n).coefficients)
+        Rw = reduced_factor(lib, s, filtered)
+        thetas.append(lstsq_from_reduced(Rw[:, :p], Rw[:, p], s.t.size).coefficients)
     M = R[:, :p].T @ R[:, :p]
     return M @ ((thetas[0] - thetas[1]) / (2 * h))
 
@@ -307,10 +299,9 @@ class ForceStateMapping:
     def fit(self, signals: StateSignals, *, context=""):
         lib = library(self.terms)
         _check_terms(lib, signals.acceleration.n_harmonics)
-        R, n = _reduced(lib, signals, self.filtered)
+        R, scores = record_pass(lib, signals, self.filtered)
         p = len(lib)
-        res = lstsq_from_reduced(R[:, :p], R[:, p], n, R[:, p + 1])
-        scores = record_scores(lib, signals, self.filtered)
+        res = lstsq_from_reduced(R[:, :p], R[:, p], signals.t.size, R[:, p + 1])
         if scores.omega_variance > 0:
             scores = replace(scores, omega_score=_omega_score(lib, signals, self.filtered, R, scores.omega_variance))
         cov = sandwich(R[:, :p].T @ R[:, :p], scores.covariance(res.coefficients))

@@ -23,9 +23,9 @@ Why pooled
     pooled form is the intended use; a single record is accepted but warns.
 
 Reduction
-    Each record is reduced to the triangular factor ``R`` of ``[X, y]`` by
-    :func:`jointid.identify.regression.reduce_blocks` (streamed block by block, never
-    building the full regression matrix); the factors are placed in their shared and
+    Each record is reduced to the triangular factor ``R`` of ``[X, y]`` in the same streamed
+    pass that gathers its noise-model sums (:func:`jointid.identify.uncertainty.record_pass`,
+    block by block, never building the full regression matrix); the factors are placed in their shared and
     per-record columns, weighted and stacked, and solved with
     :func:`~jointid.identify.regression.lstsq_from_reduced` -- the exact pooled least squares.
 
@@ -58,9 +58,9 @@ from ..signal.harmonics import (
 )
 from .broadband import delta_method
 from .fsm import COND_LIMIT, pooled_inputs, split_terms
-from .regression import pooled_lstsq, reduce_blocks
+from .regression import pooled_lstsq
 from .terms import library
-from .uncertainty import ci95, record_scores, sandwich
+from .uncertainty import ci95, record_pass, sandwich
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
 
@@ -137,16 +137,6 @@ def sine_dwell_signals(t, force, response, *, measured="acceleration", frequency
         s = s.derivative()
     accel_measured = response if measured == "acceleration" else s(t)
     return StateSignals(t, force, accel_measured, s, f_hz, given, float(resid))
-
-
-def _reduced(lib, sig: StateSignals):
-    """``R`` of ``[q''_fit, phi(q, q'), V]`` for one record, streamed block by block."""
-
-    def blocks():
-        for sl, q, v, a_fit in sig.blocks():
-            yield np.column_stack([a_fit, lib.evaluate(q, v), sig.force[sl]])
-
-    return reduce_blocks(blocks, len(lib) + 1), sig.t.size
 
 
 @dataclass(frozen=True)
@@ -411,10 +401,11 @@ class PooledGainForceStateMapping:
         own_cols = [1 + i for i in own_lib]
         ns, no, nr = len(shared_cols), len(own_cols), len(sigs)
         nt = len(lib) + 1
-        reduced = [_reduced(lib, s) for s in sigs]
-        Rs = [R for R, _ in reduced]
+        passes = [record_pass(lib, s, inertia=True) for s in sigs]
+        Rs = [R for R, _ in passes]
+        reduced = [(R, s.t.size) for R, s in zip(Rs, sigs)]
         res, weights = pooled_lstsq(reduced, shared_cols, own_cols, nt, weighting=self.weighting)
-        cov = _sandwich_covariance(lib, sigs, Rs, res.coefficients, weights, shared_cols, own_cols)
+        cov = _sandwich_covariance(lib, [sc for _, sc in passes], Rs, res.coefficients, weights, shared_cols, own_cols)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         n_total = res.n_samples
         if not np.isfinite(res.condition_number) or res.condition_number > self.cond_limit:
@@ -451,22 +442,21 @@ class PooledGainForceStateMapping:
 
 
 
-def _sandwich_covariance(lib, sigs, Rs, coef, weights, shared_cols, own_cols):
+def _sandwich_covariance(lib, scores, Rs, coef, weights, shared_cols, own_cols):
     """Covariance of the pooled gain fit under the noise model of :mod:`jointid.identify.uncertainty`.
 
     The excitation noise enters ``V`` directly; the acceleration noise enters through the
     harmonic fit, which moves the inertia column ``q''_fit`` and the states ``q, q'`` together.
     """
-    ns, no, nr = len(shared_cols), len(own_cols), len(sigs)
+    ns, no, nr = len(shared_cols), len(own_cols), len(scores)
     P = ns + no * nr
     nt = len(lib) + 1
     A, meat = np.zeros((P, P)), np.zeros((P, P))
-    for r, (sig, R, w) in enumerate(zip(sigs, Rs, weights)):
+    for r, (sc, R, w) in enumerate(zip(scores, Rs, weights)):
         cols = np.full(nt, -1)
         cols[shared_cols] = np.arange(ns)
         cols[own_cols] = ns + r * no + np.arange(no)
         theta = coef[cols]
-        sc = record_scores(lib, sig, inertia=True)
         M = R[:, :nt].T @ R[:, :nt]
         V = sc.covariance(theta)
         used = cols >= 0

@@ -59,18 +59,20 @@ def qr_reduce(X, *ys, chunk=262144) -> np.ndarray:
     return reduce_blocks(lambda: (M[s : s + chunk] for s in range(0, M.shape[0], chunk)), X.shape[1])
 
 
-def reduce_blocks(make_blocks, p) -> np.ndarray:
+def reduce_blocks(make_blocks, p, gram=None) -> np.ndarray:
     """``R`` of a tall matrix given block by block; ``make_blocks()`` returns a fresh iterator.
 
     The first ``p`` columns are regressors, the others right-hand sides.  One pass
-    accumulates the Gram matrix; when its column-scaled regressor block is well
-    conditioned (condition number of the matrix below 1e4) ``R`` is its Cholesky factor.
-    Otherwise a second pass runs a blockwise Householder QR (a tall-skinny QR), which
-    keeps full accuracy for ill-conditioned term sets.
+    accumulates the Gram matrix (or ``gram`` gives it, accumulated by the caller in a pass
+    of its own); when its column-scaled regressor block is well conditioned (condition
+    number of the matrix below 1e4) ``R`` is its Cholesky factor.  Otherwise a pass runs a
+    blockwise Householder QR (a tall-skinny QR), which keeps full accuracy for
+    ill-conditioned term sets.
     """
-    G = None
-    for B in make_blocks():
-        G = B.T @ B if G is None else G + B.T @ B
+    G = gram
+    if G is None:
+        for B in make_blocks():
+            G = B.T @ B if G is None else G + B.T @ B
     m = G.shape[0]
     scale = np.sqrt(np.diag(G)).copy()
     scale[scale == 0] = 1.0

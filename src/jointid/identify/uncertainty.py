@@ -40,10 +40,13 @@ from scipy import linalg
 
 from ..conventions import n_coefficients
 from ..signal.harmonics import HarmonicSeries, StateSignals, _basis
+from .regression import reduce_blocks
 
 __all__ = [
     "RecordScores",
     "record_scores",
+    "record_pass",
+    "reduced_factor",
     "PooledCovariance",
     "pooled_covariance",
     "LowRankCovariance",
@@ -190,8 +193,36 @@ class RecordScores:
 
 
 
-def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> RecordScores:
-    """One streamed pass over a record: the noise-model sums of :class:`RecordScores`.
+def _regression_blocks(lib, signals, filtered, inertia):
+    """Blocks of the record's regression matrix: ``[X, y_fit, y_raw]`` (force-state mapping,
+    ``y = Q - q''``) or, with ``inertia``, ``[q''_fit, X, Q]`` (unknown force gain)."""
+    for sl, q, v, a_fit in signals.blocks():
+        Q = signals.force[sl]
+        if inertia:
+            yield np.column_stack([a_fit, lib.evaluate(q, v), Q])
+            continue
+        y_raw = Q - signals.accel_measured[sl]
+        yield np.column_stack([lib.evaluate(q, v), Q - a_fit if filtered else y_raw, y_raw])
+
+
+def reduced_factor(lib, signals: StateSignals, filtered=True, inertia=False) -> np.ndarray:
+    """``R`` of the record's regression matrix (layout of :func:`record_pass`), streamed."""
+    return reduce_blocks(lambda: _regression_blocks(lib, signals, filtered, inertia), len(lib) + bool(inertia))
+
+
+def _constant(g):
+    """The value of ``g`` when it is the same at every sample, else ``None``."""
+    if g.ndim == 0 or g.strides[0] == 0 or g.min() == g.max():
+        return float(g.flat[0])
+    return None
+
+
+#: Rows per product of :func:`record_pass` against the sinusoid table (they stay in cache).
+PASS_CHUNK = 8192
+
+
+def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
+    """One streamed pass over a record: its reduced regression factor and :class:`RecordScores`.
 
     Parameters
     ----------
@@ -202,38 +233,82 @@ def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> R
     inertia : bool
         The regression has the filtered acceleration as its first column (unknown force
         gain, :mod:`jointid.identify.gain`: ``m q'' + h(q, q') = V``).
+
+    Returns
+    -------
+    R : array
+        Upper-triangular factor of ``[X, y_fit, y_raw]`` (``y = Q - q''``, filtered and
+        raw) or, with ``inertia``, of ``[q''_fit, X, Q]``.
+    scores : RecordScores
+
+    Every block's sums against the fit's sinusoids are taken on the block's table rows and
+    rotated (:meth:`~jointid.signal.harmonics.StateSignals.basis_factors`); a term whose
+    derivative is constant over a block reuses the term columns' sums instead of its own.
     """
     acc = signals.acceleration
     H, omega = acc.n_harmonics, signals.omega
     off = 1 if inertia else 0
     m, p = n_coefficients(H), len(lib) + off
-    gram = np.zeros((p, p))
+    pre = 0 if inertia else 2  # the columns y_fit, y_raw come first
+    ix, iq = pre, pre + p  # columns of X and of Q
+    n_w = iq + 1  # [y_fit, y_raw,] X, Q: their Gram gives R and the score Gram
     phi_b = np.zeros((p, m))
     dq_b = np.zeros((p, p, m))
     dv_b = np.zeros((p, p, m))
-    G = np.zeros((m, m))
-    G1 = np.zeros((m, m))  # sum of tau B^T B and tau^2 B^T B: information of the frequency in the force
-    G2 = np.zeros((m, m))
     bF = np.zeros(m)
-    FF = 0.0
-    for sl, q, v, a_fit in signals.blocks():
-        B = _basis(signals.t[sl] - acc.t0, omega, H)
-        Phi = np.column_stack([a_fit, lib.evaluate(q, v)]) if inertia else lib.evaluate(q, v)
-        Q = np.array(signals.force[sl])  # a fresh (aligned) copy: sums independent of the input's memory layout
-        gram += Phi.T @ Phi
-        phi_b += Phi.T @ B
+    gram_w = np.zeros((n_w, n_w))
+    buf = None
+    C = signals.series_coefficients()
+    for sl, T, M in signals.basis_factors():
+        rows = sl.stop - sl.start
+        if buf is None:
+            buf = np.empty((rows, n_w + 2 * len(lib) * p), order="F")
+        S = T @ C if M is None else T @ (M @ C)
+        q, v, a_fit = S[:, 0], S[:, 1], S[:, 2]
+        b = buf[:rows]
+        Q = b[:, iq]
+        Q[:] = signals.force[sl]  # a fresh (aligned) copy: sums independent of the input's memory layout
+        if inertia:
+            b[:, 0] = a_fit
+        else:
+            np.subtract(Q, signals.accel_measured[sl], out=b[:, 1])
+            if filtered:
+                np.subtract(Q, a_fit, out=b[:, 0])
+            else:
+                b[:, 0] = b[:, 1]
+        b[:, ix + off : iq] = lib.evaluate(q, v)
+        X = b[:, ix:iq]
+        gram_w += b[:, :n_w].T @ b[:, :n_w]
+        col, slots = n_w, []  # (tensor, term row, column of its product with X, or its constant value)
         for k, t in enumerate(lib):
-            gq, gv = t.derivatives(q, v)
-            dq_b[off + k] += (Phi * gq[:, None]).T @ B
-            dv_b[off + k] += (Phi * gv[:, None]).T @ B
-        G += B.T @ B
-        tau = signals.t[sl] - acc.t0
-        Bt = B * tau[:, None]
-        G1 += Bt.T @ B
-        G2 += Bt.T @ Bt
-        bF += B.T @ Q
-        FF += float(Q @ Q)
+            for tensor, g in zip((dq_b, dv_b), t.derivatives(q, v)):
+                c = _constant(g)
+                if c is None:
+                    np.multiply(X, g[:, None], out=b[:, col : col + p])
+                    slots.append((tensor, off + k, col - ix, None))
+                    col += p
+                elif c != 0.0:
+                    slots.append((tensor, off + k, None, c))
+        U = sum(b[s : s + PASS_CHUNK, ix:col].T @ T[s : s + PASS_CHUNK] for s in range(0, rows, PASS_CHUNK))
+        if M is not None:
+            U = U @ M
+        phi_b += U[:p]
+        bF += U[p]
+        for tensor, k, j, c in slots:
+            tensor[k] += U[:p] * c if j is None else U[j : j + p]
     n = signals.t.size
+    if inertia:
+        perm = np.arange(n_w)
+    else:
+        perm = np.r_[ix:iq, 0, 1]
+    R = reduce_blocks(lambda: _regression_blocks(lib, signals, filtered, inertia), p, gram=gram_w[np.ix_(perm, perm)])
+    gram = gram_w[ix:iq, ix:iq].copy()
+    FF = float(gram_w[iq, iq])
+    estimated = not signals.frequency_given
+    if estimated:  # the information of the frequency in the force
+        G, G1, G2 = signals.basis_gram(weighted=True)
+    else:
+        G = signals.basis_gram()
     dof = max(n - m, 1)
     try:
         coef_F = linalg.solve(G, bF, assume_a="pos")
@@ -243,17 +318,23 @@ def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> R
     Tv = _integration_map(omega, H)
     Tq = Tv @ Tv
     var_w = 0.0
-    if not signals.frequency_given and np.all(np.isfinite(coef_F)):
+    if estimated and np.all(np.isfinite(coef_F)):
         # d F / d omega = tau F'(tau) / omega; the force's coefficients are estimated with it
         d = HarmonicSeries(omega, coef_F).derivative().coefficients / omega
         u = G1 @ d
         info = float(d @ G2 @ d - u @ linalg.solve(G, u, assume_a="pos"))
         var_w = (rss_F / dof) / info if info > 0 else 0.0
-    return RecordScores(
+    scores = RecordScores(
         gram, phi_b, dq_b, dv_b, G, Tq, Tv, _peak_direction(signals.displacement.coefficients, Tq),
         float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n),
         bool(filtered or inertia), coef_F, bool(inertia), float(var_w),
     )
+    return R, scores
+
+
+def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> RecordScores:
+    """The noise-model sums of one record (:class:`RecordScores`), see :func:`record_pass`."""
+    return record_pass(lib, signals, filtered, inertia)[1]
 
 
 @dataclass(frozen=True)

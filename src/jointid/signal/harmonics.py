@@ -268,7 +268,7 @@ def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tupl
             f"channel {channel!r}: harmonic {n_harmonics} of {omega / (2 * np.pi):.6g} Hz is at {f_top:.6g} Hz, "
             f"not below the Nyquist frequency {fs / 2:.6g} Hz; sample faster or fit fewer harmonics"
         )
-    if t0 is None:
+    if t0 is None or float(t0) == float(t[0]):
         dt = _uniform_step(t)
         if dt is not None:  # the series starts at the first sample: tau = n dt
             return _streaming_fit(None, x, omega, n_harmonics, float(t[0]), channel, dt)
@@ -664,31 +664,52 @@ class StateSignals:
         """The time step when the record is uniformly sampled (see :func:`_uniform_step`), else None."""
         return _uniform_step(np.asarray(self.t, float))
 
+    def _rotated_table(self, size):
+        """``(T, M, rows)`` on a uniform grid: the sinusoid table of ``rows`` samples and the
+        rotation of every block of ``rows`` samples (block ``b`` of the fit's design matrix is
+        ``T @ M[b]``); ``None`` on a non-uniform grid."""
+        if self._uniform_dt is None:
+            return None
+        H, n = self.acceleration.n_harmonics, self.t.size
+        rows = min(int(size), n)
+        omega_dt = self.omega * self._uniform_dt
+        T, _ = _table(omega_dt, H, rows, False)
+        phase0 = self.omega * (float(self.t[0]) - self.acceleration.t0)
+        return T, _rotations(phase0 + omega_dt * np.arange(0, n, rows), H), rows
+
+    def basis_factors(self, size=BLOCK):
+        """Iterate ``(slice, T, M)``: the fit's design matrix ``[1, cos, sin, ...]`` of a block
+        is ``T @ M``.
+
+        On a uniform grid ``T`` is the rows of one sinusoid table and ``M`` the block's
+        ``(2H + 1)``-square rotation, so sums against the data (``X^T T``) are taken on the
+        table and rotated afterwards; otherwise ``T`` is the design matrix itself and ``M``
+        is ``None``.
+        """
+        table = self._rotated_table(size)
+        if table is None:
+            for sl in _blocks(self.t.size, size):
+                yield sl, _basis(self.t[sl] - self.acceleration.t0, self.omega, self.acceleration.n_harmonics), None
+            return
+        T, M, rows = table
+        for b, sl in enumerate(_blocks(self.t.size, rows)):
+            yield sl, T[: sl.stop - sl.start], M[b]
+
+    def series_coefficients(self) -> np.ndarray:
+        """``(2H + 1, 3)``: the coefficients of ``q``, ``q'`` and the filtered ``q''``."""
+        return np.column_stack(
+            [self.displacement.coefficients, self.velocity.coefficients, self.acceleration.coefficients]
+        )
+
     def blocks(self, size=BLOCK):
         """Iterate ``(slice, q, q', q''_filtered)`` over blocks of the record.
 
         On a uniform grid every block is one product of the fit's sinusoid table, rotated
         to the block's start, with the three series' coefficients.
         """
-        C = np.column_stack(
-            [self.displacement.coefficients, self.velocity.coefficients, self.acceleration.coefficients]
-        )
-        H = self.acceleration.n_harmonics
-        dt = self._uniform_dt
-        if dt is None:
-            for sl in _blocks(self.t.size, size):
-                S = _basis(self.t[sl] - self.acceleration.t0, self.omega, H) @ C
-                yield sl, S[:, 0], S[:, 1], S[:, 2]
-            return
-        n = self.t.size
-        rows = min(int(size), n)
-        omega_dt = self.omega * dt
-        T, _ = _table(omega_dt, H, rows, False)
-        phase0 = self.omega * (float(self.t[0]) - self.acceleration.t0)
-        starts = np.arange(0, n, rows)
-        M = _rotations(phase0 + omega_dt * starts, H) @ C
-        for b, sl in enumerate(_blocks(n, rows)):
-            S = T[: sl.stop - sl.start] @ M[b]
+        C = self.series_coefficients()
+        for sl, T, M in self.basis_factors(size):
+            S = T @ C if M is None else T @ (M @ C)
             yield sl, S[:, 0], S[:, 1], S[:, 2]
 
     def basis_blocks(self, size=BLOCK):
@@ -698,19 +719,50 @@ class StateSignals:
         same rows :meth:`blocks` combines; on a uniform grid it is the rotated table, not
         a new evaluation of sines.
         """
-        H = self.acceleration.n_harmonics
+        for sl, T, M in self.basis_factors(size):
+            yield sl, (T if M is None else T @ M)
+
+    def basis_gram(self, size=BLOCK, weighted=False):
+        """``A^T A`` of the fit's design matrix over the record (``A`` as in :meth:`basis_blocks`).
+
+        With ``weighted`` also ``A^T diag(tau) A`` and ``A^T diag(tau^2) A``, ``tau`` the
+        time from the fit's origin (the information of the frequency).  On a uniform grid
+        the sums come from the table's own Gram matrices, without a pass over the samples.
+        """
+        H, n = self.acceleration.n_harmonics, self.t.size
+        m = n_coefficients(H)
+        G, G1, G2 = np.zeros((m, m)), np.zeros((m, m)), np.zeros((m, m))
+        table = self._rotated_table(size)
+        if table is None:
+            for sl in _blocks(n, size):
+                tau = self.t[sl] - self.acceleration.t0
+                A = _basis(tau, self.omega, H)
+                G += A.T @ A
+                if weighted:
+                    At = A * tau[:, None]
+                    G1 += At.T @ A
+                    G2 += At.T @ At
+            return (G, G1, G2) if weighted else G
+        _, M, rows = table
         dt = self._uniform_dt
-        if dt is None:
-            for sl in _blocks(self.t.size, size):
-                yield sl, _basis(self.t[sl] - self.acceleration.t0, self.omega, H)
-            return
-        n = self.t.size
-        rows = min(int(size), n)
-        omega_dt = self.omega * dt
-        T, _ = _table(omega_dt, H, rows, False)
-        M = _rotations(self.omega * (float(self.t[0]) - self.acceleration.t0) + omega_dt * np.arange(0, n, rows), H)
-        for b, sl in enumerate(_blocks(n, rows)):
-            yield sl, T[: sl.stop - sl.start] @ M[b]
+        W, gram = _table(self.omega * dt, H, rows, bool(weighted))
+        nb, r = divmod(n, rows)
+        tau0 = float(self.t[0]) - self.acceleration.t0
+        parts = [(slice(0, nb), gram)] if nb else []
+        if r:
+            Wr = W[:r]
+            parts.append((slice(nb, nb + 1), Wr.T @ Wr))
+        for sel, Gw in parts:
+            Mb = M[sel]
+            Mt = Mb.transpose(0, 2, 1)
+            G0 = Gw[:m, :m]
+            G += (Mt @ G0 @ Mb).sum(axis=0)
+            if weighted:  # tau = tau_b + j dt over block b
+                Gj, Gjj = dt * Gw[:m, m:], (dt * dt) * Gw[m:, m:]
+                s = (tau0 + dt * rows * np.arange(sel.start, sel.stop, dtype=float))[:, None, None]
+                G1 += (Mt @ (s * G0 + Gj) @ Mb).sum(axis=0)
+                G2 += (Mt @ ((s * s) * G0 + 2.0 * s * Gj + Gjj) @ Mb).sum(axis=0)
+        return (G, G1, G2) if weighted else G
 
     def q_max(self) -> float:
         """Steady-state amplitude ``max |q(t)|`` of the reconstructed displacement."""
