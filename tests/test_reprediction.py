@@ -60,6 +60,29 @@ def test_reprediction_peak_against_the_true_model(campaign):
     assert "measured points rms" in r.report() and r.summary()["reference"] == "measured dwells"
 
 
+def test_refined_peak_of_a_linear_resonance():
+    """Closed form: the acceleration FRF of a linear mode peaks at omega1 / sqrt(1 - 2 zeta^2)."""
+    from jointid.rig.rig import parabolic_peak, refine_peak
+
+    w1, zeta = 2 * np.pi * 26.4, 0.002
+
+    def mag(f):
+        w = 2 * np.pi * np.asarray(f)
+        return np.abs(w**2 / (w1**2 - w**2 + 2j * zeta * w1 * w))
+
+    exact = w1 / np.sqrt(1 - 2 * zeta**2) / (2 * np.pi)
+    f0 = np.linspace(26.213, 26.613, 11)  # 40 mHz apart, off the peak: the 0.1 Hz wide peak is barely sampled
+    coarse, coarse_top = parabolic_peak(f0, mag(f0))
+    f, m = refine_peak(mag, f0, mag(f0), 5e-5 * exact)
+    fine, top = parabolic_peak(f, m)
+    assert abs(coarse / exact - 1) > 5e-5 and abs(coarse_top / mag(exact) - 1) > 0.01  # the coarse parabola
+    assert abs(fine / exact - 1) < 1e-7 and top == pytest.approx(float(mag(exact)), rel=1e-6)
+    assert np.all(np.diff(f) > 0) and f.size < f0.size + 40  # bracketed halving: a few points only
+    # a largest sample at the end of the samples brackets no peak: nothing is added
+    f_end, _ = refine_peak(mag, f0[:4], mag(f0[:4]), 1e-6)
+    assert f_end.size == 4
+
+
 @pytest.mark.slow
 def test_demo_repredictions_within_limits(tmp_path):
     """Issue target: peak errors against the rig's exact FRF within 0.3 % (amplitude) and 0.02 % (frequency).

@@ -43,10 +43,10 @@ from ..modal.beam import SEED_TABLE4_HZ, seed_bolted_beam
 from ..modal.structure import Structure
 from ..modal.updating import update_to_frequencies
 from ..rig.plan import RigCampaign, MeasurementPlan, read_random_record, run_test_plan, structure_section, write_manifest
-from ..rig.rig import RigFRF, VirtualRig, seed_rig
+from ..rig.rig import RigFRF, VirtualRig, refine_peak, seed_rig
 from ..signal.frf import fit_modes, h1_estimate
 from .workflow import CampaignResult, IdentifySettings, identify_campaign
-from .reprediction import Reprediction, repredict_group
+from .reprediction import PEAK_RTOL, Reprediction, repredict_group
 
 __all__ = ["DemoSettings", "Reprediction", "PreloadResult", "DemoResult", "run_demo", "CHECK_LIMITS"]
 
@@ -272,7 +272,13 @@ def _measured_frf(camp: RigCampaign, result: CampaignResult, force_level, sensor
 
 
 def _exact_frf(camp: RigCampaign, force_level, sensor="accel_42", refine=9) -> RigFRF:
-    """The rig's exact FRF at the dwells of a level, refined around the peak."""
+    """The rig's exact FRF at the dwells of a level, refined around the peak.
+
+    ``refine - 2`` steady states between the dwells beside the largest one draw the peak;
+    then the intervals beside the largest sample are halved down to ``PEAK_RTOL`` of its
+    frequency (:func:`~jointid.rig.rig.refine_peak`), so that the reference peak is exact
+    to far below the errors it is compared with.
+    """
     rig = camp.rig
     dw = [d for d in camp.dwells if d.force_level == force_level]
     i = rig.model.sensor_names.index(sensor)
@@ -286,8 +292,18 @@ def _exact_frf(camp: RigCampaign, force_level, sensor="accel_42", refine=9) -> R
     lo, hi = f[max(k - 1, 0)], f[min(k + 1, f.size - 1)]
     ff = np.linspace(lo, hi, refine)[1:-1]
     ff = ff[np.min(np.abs(ff[:, None] - f[None, :]), axis=1) > 1e-9 * f[k]]  # not the dwell frequencies again
-    fine = rig.sweep(ff, force_level, distortion=camp.plan.acquisition.distortion)
-    f_all = np.concatenate([f, ff])
+    fine = list(rig.sweep(ff, force_level, distortion=camp.plan.acquisition.distortion))
+    extra_f = list(ff)
+
+    def magnitude(f_new):
+        states = rig.sweep(f_new, force_level, distortion=camp.plan.acquisition.distortion)
+        fine.extend(states)
+        extra_f.extend(f_new)
+        return [abs(H_of(s)) for s in states]
+
+    f0 = np.concatenate([f, ff])
+    refine_peak(magnitude, f0, np.abs(np.concatenate([H, [H_of(s) for s in fine]])), PEAK_RTOL * f[k])
+    f_all = np.concatenate([f, extra_f])
     H_all = np.concatenate([H, [H_of(s) for s in fine]])
     amp = np.array([np.max(np.abs(d.state.joint)) for d in dw] + [np.max(np.abs(s.joint)) for s in fine])
     o = np.argsort(f_all)
