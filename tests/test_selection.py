@@ -35,12 +35,17 @@ TRUTH = {
 }
 
 
-def campaign(model, seed, noise, levels=(0.5, 1.0, 2.0), n_frequencies=11, periods=20):
-    """Records of a stepped-sine campaign (harmonic-balance steady states plus white noise)."""
+def campaign(model, seed, noise, levels=(0.5, 1.0, 2.0), n_frequencies=11, periods=20, n_time=None):
+    """Records of a stepped-sine campaign (harmonic-balance steady states plus white noise).
+
+    ``n_time``: time samples per period of the harmonic balance (a fine grid places the switching
+    instants of Coulomb friction; the default grid shifts them by up to half a sample).
+    """
     rng = np.random.default_rng(seed)
     sigs, lev = [], []
     for F in levels:
-        frf = frequency_response(model, F, np.linspace(160.0, 182.0, n_frequencies), n_harmonics=9, stability=False)
+        frf = frequency_response(model, F, np.linspace(160.0, 182.0, n_frequencies), n_harmonics=9, stability=False,
+                                 n_time=n_time)
         for s in frf.states:
             t, Q, a = synthesize_record(s, 2000.0, periods * 2 * np.pi / s.omega, t0=rng.uniform(0, 1), noise=noise,
                                         rng=rng)

@@ -29,8 +29,9 @@ from scipy import linalg, stats
 
 from ..conventions import harmonic_index
 from ..errors import IdentificationError
-from .fsm import record_whitenings
-from .uncertainty import scaled_inverse
+from .fsm import record_whitenings, split_terms
+from .model import in_band_rows, out_of_band_fraction, score_covariance
+from .uncertainty import sandwich, scaled_inverse
 
 __all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equality", "record_adequacy",
            "assess_preload", "check_adequacy", "P_LIMIT"]
@@ -45,6 +46,10 @@ OUTLIER_MEDIAN_LIMIT = 3.0
 MISFIT_LIMIT = 10.0
 #: |t| of the order trend of the own omega1 above which a group drifts.
 DRIFT_T = 5.0
+#: A term column with more than this fraction of its energy beyond the fitted harmonics is
+#: compared with the records within the fitted harmonics (sign(q'): 0.067 with 5 harmonics;
+#: |q|q, |q'|q': about 1e-4; polynomials of the fitted motion: below 1e-6).
+OUT_OF_BAND_LIMIT = 1e-3
 
 
 def _p_text(p) -> str:
@@ -276,18 +281,22 @@ def level_equality(level_fits, names=None) -> tuple:
     sel = [j for j, n in enumerate(all_names) if names is None or n in names]
     if not sel:
         return (), float("nan"), 0, float("nan")
-    names = tuple(all_names[j] for j in sel)
-    th = [np.asarray(f.shared, float)[sel] for _, f in level_fits]
-    Ci = [scaled_inverse(np.asarray(f.covariance.shared)[np.ix_(sel, sel)]) for _, f in level_fits]
+    return _equality(tuple(lv for lv, _ in level_fits), tuple(all_names[j] for j in sel),
+                     [np.asarray(f.shared, float)[sel] for _, f in level_fits],
+                     [np.asarray(f.covariance.shared)[np.ix_(sel, sel)] for _, f in level_fits])
+
+
+def _equality(levels, names, th, covs):
+    """The equality tests of :func:`level_equality` from each level's values and covariance."""
+    Ci = [scaled_inverse(c) for c in covs]
     S = sum(Ci)
     bar = scaled_inverse(S) @ sum(c @ t for c, t in zip(Ci, th))
     chi2 = float(sum((t - bar) @ c @ (t - bar) for c, t in zip(Ci, th)))
     dof = (len(th) - 1) * len(names)
     out = []
-    levels = tuple(lv for lv, _ in level_fits)
     for j, n in enumerate(names):
         v = np.array([t[j] for t in th])
-        s = np.array([np.sqrt(max(f.covariance.shared[sel[j], sel[j]], 0.0)) for _, f in level_fits])
+        s = np.array([np.sqrt(max(c[j, j], 0.0)) for c in covs])
         w = 1.0 / np.maximum(s, 1e-300) ** 2
         m = float(np.sum(w * v) / np.sum(w))
         c2 = float(np.sum(w * (v - m) ** 2))
@@ -297,7 +306,7 @@ def level_equality(level_fits, names=None) -> tuple:
     return tuple(out), chi2, dof, float(stats.chi2.sf(chi2, dof))
 
 
-def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="noise") -> tuple:
+def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="noise", in_band=False) -> tuple:
     """Each record against a preload model: misfit, explained fractions, outliers.
 
     Parameters
@@ -310,6 +319,8 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
         Force level of each record (outliers are judged within a level).
     labels : sequence, optional
         Record labels (default the positions).
+    in_band : bool
+        Compare within the fitted harmonics (:func:`~jointid.identify.model.in_band_rows`).
     """
     labels = list(range(len(fits))) if labels is None else list(labels)
     wh = record_whitenings(fits, weighting)
@@ -319,8 +330,8 @@ def record_adequacy(model, fits, signals_list, levels, labels=None, weighting="n
         if tuple(f.terms) != tuple(model.terms):
             raise IdentificationError(f"record {lab}: its fit has terms {f.terms}, the model {model.terms}")
         theta = model.coefficients_at(f.q_max)
-        rows = w.rows
-        e = rows[:, :p] @ theta - rows[:, p]
+        D, z = in_band_rows(f, w) if in_band else (w.rows[:, :p], w.rows[:, p])
+        e = D @ theta - z
         misfit = float(e @ e) / p
         # calibrated chi-square: the weighted error has covariance W S W^T (S = R^-T V R^-1), whose
         # eigenvalues give the Satterthwaite scale and degrees of freedom of |e|^2
@@ -407,6 +418,74 @@ def _drift(fits, levels, labels):
     return out
 
 
+def in_band_level_fits(fits, levels, names=None, weighting="noise") -> tuple:
+    """Each force level's fit within the fitted harmonics: shared stiffness terms, own damping per record.
+
+    The pooled fit of a level (:class:`~jointid.identify.fsm.PooledForceStateMapping`, default
+    split of the terms) on the rows of :func:`~jointid.identify.model.in_band_rows`, with the
+    sandwich covariance of the records' score covariances.  Returns
+    ``(levels, names, values, covariances)`` of the shared parameters ``names`` (default all).
+    """
+    lib = fits[0].terms
+    from .terms import library
+
+    lib = library(list(lib))
+    p = len(lib)
+    shared, own = split_terms(lib)
+    all_names = tuple(lib.coefficient_names[i] for i in shared)
+    sel = [j for j, n in enumerate(all_names) if names is None or n in names]
+    wh = record_whitenings(fits, weighting)
+    out_lv, out_th, out_cov = [], [], []
+    for lv in dict.fromkeys(levels):
+        idx = [i for i, x in enumerate(levels) if x == lv]
+        k, d = len(shared), len(own)
+        P = k + d * len(idx)
+        if len(idx) * p <= P:
+            continue
+        Es, rows = [], []
+        for j, i in enumerate(idx):
+            E = np.zeros((p, P))
+            E[shared, :k] = np.eye(k)
+            E[own, k + j * d:k + (j + 1) * d] = np.eye(d)
+            Es.append(E)
+            rows.append(in_band_rows(fits[i], wh[i]))
+        A = np.vstack([D @ E for (D, _), E in zip(rows, Es)])
+        b = np.concatenate([z for _, z in rows])
+        x = np.linalg.lstsq(A, b, rcond=None)[0]
+        V = np.zeros((P, P))
+        for (D, _), E, i in zip(rows, Es, idx):
+            V += E.T @ score_covariance(wh[i], fits[i].scores.covariance(E @ x), D) @ E
+        cov = sandwich(A.T @ A, V)
+        out_lv.append(lv)
+        out_th.append(x[:k][sel])
+        out_cov.append(cov[:k, :k][np.ix_(sel, sel)])
+    return tuple(out_lv), tuple(all_names[j] for j in sel), out_th, out_cov
+
+
+def _in_band_model(model, fits, signals_list, weighting, truncated):
+    """The preload model refitted within the fitted harmonics, and a note on what that changes."""
+    import warnings
+
+    from ..errors import JointidWarning
+    from .model import PreloadForceStateMapping
+
+    laws = {c: L for c, L in zip(model.coefficient_names, model.law_orders) if L != 0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        band = PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
+                                        preload=model.preload, in_band=True).fit(signals_list, fits=fits).result_
+    H = fits[0].scores.phi_b.shape[1] // 2
+    what = ", ".join(f"{t} {100 * x:.2g} %" for t, x in truncated.items())
+    note = (f"terms with energy beyond the {H} fitted harmonics ({what}): the records are compared with the model "
+            f"within the fitted harmonics")
+    z = (model.parameters - band.parameters) / np.where(band.stderr > 0, band.stderr, np.inf)
+    biased = [f"{n} {v:.4g} (within the band {b:.4g} ± {e:.2g})" for n, v, b, e, t in
+              zip(model.parameter_names, model.parameters, band.parameters, band.stderr, z) if abs(t) > 3]
+    if biased:
+        note += f"; the filtered regression over all harmonics biases {'; '.join(biased)}"
+    return band, note
+
+
 def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, weighting="noise",
                    preload=None) -> AdequacyResult:
     """All adequacy checks of one preload (see the module notes).
@@ -423,7 +502,17 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     constant = None
     if model is not None:  # coefficients with an amplitude law may differ between levels
         constant = [c for c, L in zip(model.coefficient_names, model.law_orders) if L == 0]
-    eq, chi2, dof, p = level_equality(level_fits, constant)
+    # terms with harmonics beyond the fitted ones (sign(q')): compare within the fitted harmonics
+    truncated = {}
+    if model is not None and fits and all(f.scores is not None and f.scores.filtered for f in fits):
+        frac = np.max([out_of_band_fraction(f) for f in fits], axis=0)
+        truncated = {t: float(x) for t, x in zip(model.terms, frac) if x > OUT_OF_BAND_LIMIT}
+    if truncated:
+        lv, names, th, covs = in_band_level_fits(fits, levels, constant, weighting)
+        eq, chi2, dof, p = (_equality(lv, names, th, covs) if len(lv) >= 2 and names
+                            else ((), float("nan"), 0, float("nan")))
+    else:
+        eq, chi2, dof, p = level_equality(level_fits, constant)
     terms = tuple(model.terms) if model is not None else tuple(level_fits[0][1].terms) if level_fits else ()
     name = model_name(terms) if terms else "?"
     msgs, adequate = [], True
@@ -436,7 +525,11 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     recs = ()
     drift = {}
     if model is not None and fits:
-        recs = record_adequacy(model, fits, signals_list, levels, labels, weighting)
+        checked = model
+        if truncated:
+            checked, note = _in_band_model(model, fits, signals_list, weighting, truncated)
+            msgs.append(note)
+        recs = record_adequacy(checked, fits, signals_list, levels, labels, weighting, in_band=bool(truncated))
         mis = np.array([r.misfit for r in recs], float)
         med = float(np.median(mis[np.isfinite(mis)])) if np.any(np.isfinite(mis)) else float("nan")
         if med > MISFIT_LIMIT:

@@ -25,7 +25,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
+from scipy import linalg, optimize
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
@@ -33,10 +33,10 @@ from .fsm import COND_LIMIT, _check_terms, _ci_text, _pm, own_fits, pooled_input
 from .powerlaw import EXPONENT_BOUNDS, POWER, PowerLaw, is_power
 from .regression import lstsq_from_reduced
 from .terms import library
-from .uncertainty import ci95, sandwich
+from .uncertainty import ci95, sandwich, scaled_inverse
 
 __all__ = ["PreloadModel", "PreloadForceStateMapping", "law_orders", "law_size", "parameter_names", "expand",
-           "fit_laws"]
+           "fit_laws", "in_band_rows", "out_of_band_fraction"]
 
 
 def law_size(order) -> int:
@@ -223,6 +223,44 @@ def fit_laws(term_rows, rhs, q_max, orders, n_samples):
     theta[lin] = res.coefficients
     J = np.vstack([R @ expand(orders, q, theta)[1] for R, q in zip(term_rows, q_max)])
     return theta, res.condition_number, J
+
+
+def in_band_rows(fit, whitening):
+    """A record's weighted rows with the model seen within the fitted harmonics: ``(W R^-T Phi^T P Phi, W z)``.
+
+    The filtered regression fits the restoring force ``Q - q''_fit``, whose acceleration
+    holds only the fitted harmonics, with term columns ``Phi`` evaluated on the fitted
+    motion; a term such as ``sign(q')`` has harmonics beyond the fitted ones (a square
+    wave: 35 % of its energy above the fundamental lies beyond the 5th harmonic), which
+    the data cannot show.  Its expected normal equations are ``Phi^T P Phi theta =
+    Phi^T y`` with ``P = B G^-1 B^T`` the projection onto the fitted harmonics
+    (``Phi^T B`` and ``G = B^T B`` are the record's noise-model sums); in the record's
+    reduced space the rows ``R`` become ``R^-T Phi^T P Phi`` and ``z`` stays.  For terms
+    whose columns lie within the fitted harmonics (polynomials of a harmonic motion up to
+    its band) the rows are ``R`` again.
+    """
+    sc = fit.scores
+    M = sc.phi_b @ scaled_inverse(sc.basis_gram) @ sc.phi_b.T
+    D = linalg.solve_triangular(whitening.R, 0.5 * (M + M.T), trans="T", check_finite=False)
+    return whitening.W @ D, whitening.W @ whitening.z
+
+
+def out_of_band_fraction(fit) -> np.ndarray:
+    """Fraction of each term column's energy beyond the fitted harmonics (``1 - Phi_j^T P Phi_j / Phi_j^T Phi_j``)."""
+    sc = fit.scores
+    inside = np.einsum("jm,mn,jn->j", sc.phi_b, scaled_inverse(sc.basis_gram), sc.phi_b)
+    g = np.diag(sc.gram)
+    return np.where(g > 0, 1.0 - inside / np.where(g > 0, g, 1.0), 0.0)
+
+
+def score_covariance(whitening, V, rows=None) -> np.ndarray:
+    """Covariance of the weighted score ``D^T W eps`` of a record (``D``: its weighted rows; default ``W R``)."""
+    if rows is None:
+        return whitening.score_covariance(V)
+    A = linalg.solve_triangular(whitening.R, V, trans="T", check_finite=False)
+    S = whitening.W @ linalg.solve_triangular(whitening.R, A.T, trans="T", check_finite=False).T @ whitening.W.T
+    out = rows.T @ S @ rows
+    return 0.5 * (out + out.T)
 
 
 def _law_text(coefficient, order) -> str:
@@ -429,6 +467,10 @@ class PreloadForceStateMapping:
     filtered : bool
     preload : object
         Label stored on the result.
+    in_band : bool
+        Compare the model with the records within the fitted harmonics (:func:`in_band_rows`;
+        filtered records only): removes the bias of terms with harmonics beyond the fitted
+        ones (``sign(q')``); identical for terms within the band.
 
     Attributes
     ----------
@@ -437,7 +479,7 @@ class PreloadForceStateMapping:
     """
 
     def __init__(self, terms="q + -q^3 + q'", amplitude_laws=None, damping_order=2, weighting="noise",
-                 cond_limit=COND_LIMIT, filtered=True, preload=None):
+                 cond_limit=COND_LIMIT, filtered=True, preload=None, in_band=False):
         self.terms = terms
         self.amplitude_laws = amplitude_laws
         self.damping_order = damping_order
@@ -445,6 +487,7 @@ class PreloadForceStateMapping:
         self.cond_limit = cond_limit
         self.filtered = filtered
         self.preload = preload
+        self.in_band = in_band
 
     @single_threaded
     def fit(self, signals_list, *, context="", fits=None):
@@ -466,14 +509,19 @@ class PreloadForceStateMapping:
         q_max = np.array([f.q_max for f in fits])
         n_total = int(sum(f.n_samples for f in fits))
         wh = record_whitenings(fits, self.weighting)
-        rows = [w.rows for w in wh]
-        theta, cond, A = fit_laws([r[:, :p] for r in rows], [r[:, p] for r in rows], q_max, orders, n_total)
+        if self.in_band:
+            if not all(f.scores.filtered for f in fits):
+                raise IdentificationError(f"{context}in_band needs records fitted to the filtered restoring force")
+            rows = [in_band_rows(f, w) for f, w in zip(fits, wh)]
+        else:
+            rows = [(w.rows[:, :p], w.rows[:, p]) for w in wh]
+        theta, cond, A = fit_laws([r[0] for r in rows], [r[1] for r in rows], q_max, orders, n_total)
         weights = np.array([w.scalar for w in wh])
         M = A.T @ A
         V = np.zeros((P, P))
-        for w, f, q in zip(wh, fits, q_max):
+        for w, f, q, r in zip(wh, fits, q_max, rows):
             coef, E, slope = expand(orders, q, theta)
-            V += E.T @ w.score_covariance(f.scores.covariance(coef, slope)) @ E
+            V += E.T @ score_covariance(w, f.scores.covariance(coef, slope), r[0] if self.in_band else None) @ E
         cov = sandwich(M, V)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         warn = []
