@@ -58,16 +58,19 @@ def _p_text(p) -> str:
     return "p < 1e-6" if p < 1e-6 else f"p = {p:.2g}"
 
 
-def model_name(terms) -> str:
-    """A family name for a term set (``"cubic"`` for ``q, -q^3, q'``), else the terms themselves."""
+def model_name(terms, power_laws=False) -> str:
+    """A family name for a term set (``"cubic"`` for ``q, -q^3, q'``), else the terms themselves.
+
+    ``power_laws``: the model has micro-slip power laws (the micro-slip families of the same terms).
+    """
     from .selection import DEFAULT_CANDIDATES
     from .terms import library
 
     names = set(library(list(terms)).names)
     for c in DEFAULT_CANDIDATES:
-        if set(c.library.names) == names:
+        if set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws):
             return c.name
-    return " + ".join(terms)
+    return " + ".join(terms) + ("; power laws" if power_laws else "")
 
 
 @dataclass(frozen=True)
@@ -514,7 +517,8 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     else:
         eq, chi2, dof, p = level_equality(level_fits, constant)
     terms = tuple(model.terms) if model is not None else tuple(level_fits[0][1].terms) if level_fits else ()
-    name = model_name(terms) if terms else "?"
+    power = model is not None and any(isinstance(L, str) for L in model.law_orders)
+    name = model_name(terms, power) if terms else "?"
     msgs, adequate = [], True
     differ = [e for e in eq if e.differs]
     if dof and p < P_LIMIT:
