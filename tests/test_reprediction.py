@@ -83,16 +83,25 @@ def test_refined_peak_of_a_linear_resonance():
     assert f_end.size == 4
 
 
-@pytest.mark.slow
-def test_demo_repredictions_within_limits(tmp_path):
-    """Issue target: peak errors against the rig's exact FRF within 0.3 % (amplitude) and 0.02 % (frequency).
-
-    Measured with seed 0: 0.204 % and 0.0204 % (120 N, 6 N); the frequency bound below is
-    0.025 % because the identified model, not the re-prediction, sets that figure.
-    """
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """The demo's campaigns at 120 and 540 N identified with the seed's cubic (seed 0, no figures)."""
     from jointid.app.demo import run_demo
 
-    demo = run_demo(tmp_path / "demo", progress=False, figures=False)
+    return run_demo(tmp_path_factory.mktemp("demo") / "demo", progress=False, figures=False)
+
+
+@pytest.mark.slow
+def test_demo_repredictions_within_limits(demo):
+    """The demo's cubic re-predicts every level's peak against the rig's exact FRF.
+
+    Measured with seed 0 (seeds 1 and 2 alike): amplitude within 0.15 %, frequency within
+    0.0222 % (120 N, 6 N), the model's own error: at that level the group's cubic puts the
+    first-harmonic stiffness of its largest dwell (q_max 5.0 mm) 0.046 % above the dwell's
+    own, because the Iwan joint's stiffness falls about linearly with amplitude, not with its
+    square (the adequacy check rejects the cubic at both preloads).  The model the data
+    select meets the issue's 0.02 % (next test); the bound here guards the cubic's figure.
+    """
     reps = [r for pr in demo.preloads for r in pr.repredictions]
     assert len(reps) == 6
     assert max(abs(r.peak_amplitude_error_percent) for r in reps) < 0.3
@@ -100,3 +109,28 @@ def test_demo_repredictions_within_limits(tmp_path):
     assert all(r.reference_kind == "exact" for r in reps)
     # identify's own re-predictions (against the dwells) are in every preload's result
     assert all(pr.result.repredictions for pr in demo.preloads)
+
+
+@pytest.mark.slow
+def test_demo_campaigns_repredicted_with_the_selected_model_within_limits(demo):
+    """Issue target: identified with ``terms="auto"``, every level's re-predicted peak against the rig's
+    exact FRF within 0.3 % (amplitude) and 0.02 % (frequency).
+
+    Measured with seed 0: the micro-slip + cubic model selected at both preloads, fitted over
+    the preload's three levels, gives at most 0.0038 % (frequency) and 0.12 % (amplitude).
+    """
+    from dataclasses import replace
+
+    from jointid.app.demo import _reprediction
+    from jointid.app.model_checks import identify_auto
+
+    settings = demo.settings
+    for pr in demo.preloads:
+        with pytest.warns(Warning):
+            res = identify_auto(pr.campaign.folder, replace(settings.identify, progress=False, repredict=False))
+        assert res.selections[pr.preload].selected != "cubic"
+        for level in settings.plan.force_levels:
+            r = _reprediction(pr.campaign, res, pr.structure, level, settings.reprediction_points)
+            assert r.reference_kind == "exact" and "omega1^2" in r.model.amplitude_laws  # a stiffness law
+            assert abs(r.peak_frequency_error_percent) < 0.02, r.report()
+            assert abs(r.peak_amplitude_error_percent) < 0.3, r.report()
