@@ -101,3 +101,17 @@ def test_power_law_standard_errors_calibrated_over_30_campaigns():
     rms = np.sqrt(np.mean(np.square(zs), axis=0))
     print("rms z", dict(zip(("omega1^2", "s", "p'", "c0", "c1", "p"), np.round(rms, 2))))
     assert np.all((rms > 0.7) & (rms < 1.4)), rms
+
+
+def test_model_backbone_of_power_laws():
+    """The preload model's backbone (also from its results.json entry): omega = sqrt(K(a)), zeta = C(a) / (2 omega)."""
+    from jointid.app.backbones import preload_model_backbone
+
+    sigs, _ = campaign(TRUTH, 2, 0.005, n_frequencies=5)
+    m = _fit(sigs)
+    for model in (m, json.loads(json.dumps(m.summary()))):
+        b = preload_model_backbone(model, n_points=5)
+        a = np.asarray(b.amplitude)
+        K, C = TRUTH.amplitude_laws["omega1^2"].value(a), TRUTH.amplitude_laws["c"].value(a)
+        assert np.all(np.abs(b.omega - np.sqrt(K)) < 4 * b.omega_stderr)
+        assert np.all(np.abs(b.zeta - C / (2 * np.sqrt(K))) < 4 * b.zeta_stderr)

@@ -48,17 +48,14 @@ def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, l
         See :func:`jointid.identify.backbone.model_backbone`.
     """
     s = model if isinstance(model, dict) else model.summary()
+    from ..identify.model import law_size
+    from ..identify.powerlaw import PowerLaw, is_power
     from ..identify.terms import library
 
     lib = library(s["terms"])
-    laws_spec = s.get("amplitude_laws") or {}
-    power = [k for k, v in laws_spec.items() if isinstance(v, str)]
-    if power:
-        from ..errors import IdentificationError
-
-        raise IdentificationError(f"preload {s.get('preload')}: no model backbone for the power law(s) of "
-                                  f"{', '.join(power)} (model_backbone takes polynomial laws)")
-    orders = {lib[k].coefficient: int(v) for k, v in laws_spec.items()}
+    # a law's order, or "power" for the micro-slip law c0 + c1 q_max^p (three parameters)
+    orders = {lib[k].coefficient: (v if isinstance(v, str) else int(v))
+              for k, v in (s.get("amplitude_laws") or {}).items()}
     params = np.asarray(s["parameters"], float)
     cov = None if s.get("covariance") is None else np.asarray(s["covariance"], float)
     # the model's parameters run term by term (laws expanded in place); the backbone's
@@ -67,14 +64,15 @@ def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, l
     i = 0
     for t in lib:
         L = orders.get(t.coefficient, 0)
-        if L == 0:
+        n = law_size(L)
+        if n == 1:
             coefs.append(params[i])
             pos_const.append(i)
         else:
             coefs.append(0.0)
-            laws[t.coefficient] = params[i:i + L + 1]
-            pos_law[t.coefficient] = list(range(i, i + L + 1))
-        i += L + 1
+            laws[t.coefficient] = PowerLaw(*params[i:i + 3]) if is_power(L) else params[i:i + n]
+            pos_law[t.coefficient] = list(range(i, i + n))
+        i += n
     perm = pos_const + [j for t in lib if t.coefficient in pos_law for j in pos_law[t.coefficient]]
     if amplitudes is None:
         lo, hi = s.get("q_max_range") or (None, None)

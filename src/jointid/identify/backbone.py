@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, IdentificationError
+from .powerlaw import PowerLaw
 from .terms import library
 
 __all__ = [
@@ -246,10 +247,11 @@ def _unflatten(lib, p, law_sizes):
     return base, laws
 
 
-def _theta_at(lib, base, laws, q_max):
+def _theta_at(lib, base, laws, q_max, power=frozenset()):
     theta = base.copy()
     for name, poly in laws.items():
-        theta[lib.index(name)] = np.polynomial.polynomial.polyval(q_max, poly)
+        theta[lib.index(name)] = (PowerLaw(*poly).value(q_max) if name in power
+                                  else np.polynomial.polynomial.polyval(q_max, poly))
     return theta
 
 
@@ -345,10 +347,12 @@ def model_backbone(terms, coefficients, amplitudes, *, amplitude_laws=None, cova
         First-harmonic amplitudes ``a`` of ``q`` at which to evaluate.
     amplitude_laws : mapping, optional
         ``{coefficient or term name: (p0, p1, ...)}``: that coefficient is
-        ``p0 + p1 q_max + ...`` (``q_max = a`` at first order).
+        ``p0 + p1 q_max + ...`` (``q_max = a`` at first order); or
+        ``{name: PowerLaw(c0, c1, p)}``: ``c0 + c1 q_max^p``.
     covariance : array_like, optional
         Covariance of the parameter vector of :func:`parameter_vector` (coefficients
-        without a law, then the law polynomials).  Without it the bands are ``nan``.
+        without a law, then the law polynomials; a power law's ``c0, c1, p``).  Without it
+        the bands are ``nan``.
     n_harmonics : int
         1: first-harmonic balance (closed form above).  More: the multi-harmonic
         periodic motion with the damping replaced by ``xi q'`` (module docstring).
@@ -374,7 +378,10 @@ def model_backbone(terms, coefficients, amplitudes, *, amplitude_laws=None, cova
     a = np.atleast_1d(np.asarray(amplitudes, float))
     if a.ndim != 1 or not np.all(np.isfinite(a)) or np.any(a < 0):
         raise IdentificationError(f"amplitudes must be finite and >= 0, got {amplitudes!r}")
-    laws = {lib[k].coefficient: np.atleast_1d(np.asarray(v, float)) for k, v in dict(amplitude_laws or {}).items()}
+    given = dict(amplitude_laws or {})
+    power = frozenset(lib[k].coefficient for k, v in given.items() if isinstance(v, PowerLaw))
+    laws = {lib[k].coefficient: np.atleast_1d(np.asarray(v.parameters if isinstance(v, PowerLaw) else v, float))
+            for k, v in given.items()}
     p, names = parameter_vector(lib, coefficients, laws)
     sizes = {k: v.size for k, v in laws.items()}
     H = int(n_harmonics)
@@ -387,16 +394,16 @@ def model_backbone(terms, coefficients, amplitudes, *, amplitude_laws=None, cova
         w_prev = np.sqrt(max(base[lib.index("q")] if "omega1^2" not in lw else lw["omega1^2"][0], 1e-300))
         for i, ai in enumerate(a):
             if ai == 0:  # the linear limit
-                th = _theta_at(lib, base, lw, 0.0)
+                th = _theta_at(lib, base, lw, 0.0, power)
                 w[i] = np.sqrt(th[lib.index("q")])
                 z[i] = (th[lib.index("q'")] if "q'" in lib.names else 0.0) / (2 * w[i])
                 continue
             if H <= 1:
-                w[i], z[i] = _first_harmonic(lib, _theta_at(lib, base, lw, ai), ai, n_time, w_prev)
+                w[i], z[i] = _first_harmonic(lib, _theta_at(lib, base, lw, ai, power), ai, n_time, w_prev)
             else:
-                w1, z1 = _first_harmonic(lib, _theta_at(lib, base, lw, ai), ai, n_time, w_prev)
-                w[i], z[i], _ = _epmc_sdof(lib, lambda qm: _theta_at(lib, base, lw, qm), ai, H, w1, 2 * z1 * w1,
-                                           n_time)
+                w1, z1 = _first_harmonic(lib, _theta_at(lib, base, lw, ai, power), ai, n_time, w_prev)
+                w[i], z[i], _ = _epmc_sdof(lib, lambda qm: _theta_at(lib, base, lw, qm, power), ai, H, w1,
+                                           2 * z1 * w1, n_time)
             w_prev = w[i]
         return w, z
 
