@@ -33,7 +33,6 @@ from .uncertainty import (
     ci95,
     pooled_covariance,
     record_pass,
-    reduced_factor,
     sandwich,
     whitening,
 )
@@ -77,24 +76,6 @@ def _pm(value, stderr) -> str:
     from ..report.formatting import format_pm
 
     return format_pm(value, stderr)
-
-
-def _omega_score(lib, signals, filtered, R, var_omega):
-    """``d(X^T r) / d omega`` of a record whose frequency was estimated: the record refitted at
-    ``omega +- sqrt(var)`` (harmonic fit of the acceleration and regression), ``M d theta / d omega``."""
-    from ..signal.harmonics import fit_harmonics
-
-    p = len(lib)
-    h = float(np.sqrt(var_omega))
-    thetas = []
-    for w in (signals.omega + h, signals.omega - h):
-        series, rms = fit_harmonics(signals.t, signals.accel_measured, w, signals.acceleration.n_harmonics,
-                                    t0=signals.acceleration.t0)
-        s = replace(signals, acceleration=series, frequency_hz=w / (2 * np.pi), accel_residual_rms=rms)
-        Rw = reduced_factor(lib, s, filtered)
-        thetas.append(lstsq_from_reduced(Rw[:, :p], Rw[:, p], s.t.size).coefficients)
-    M = R[:, :p].T @ R[:, :p]
-    return M @ ((thetas[0] - thetas[1]) / (2 * h))
 
 
 def record_whitenings(fits, weighting, thetas=None) -> list:
@@ -303,7 +284,7 @@ class ForceStateMapping:
         p = len(lib)
         res = lstsq_from_reduced(R[:, :p], R[:, p], signals.t.size, R[:, p + 1])
         if scores.omega_variance > 0:
-            scores = replace(scores, omega_score=_omega_score(lib, signals, self.filtered, R, scores.omega_variance))
+            scores = replace(scores, omega_score=scores.frequency_score(res.coefficients))
         cov = sandwich(R[:, :p].T @ R[:, :p], scores.covariance(res.coefficients))
         res = replace(res, covariance=cov, stderr=np.sqrt(np.clip(np.diag(cov), 0.0, None)))
         warn = _resolution_warnings(list(lib), res, self.cond_limit, context)

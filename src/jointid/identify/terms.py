@@ -60,6 +60,9 @@ class Term:
         by default.
     odd : bool
         True when ``phi(-q, -v) = -phi(q, v)``; such terms create odd harmonics only.
+    dq_const, dv_const : float, optional
+        The value of ``dq`` (``dv``) when it is the same at every state (``1`` and ``0``
+        for ``q``): sums over a record then need no evaluation of the derivative.
     """
 
     name: str
@@ -69,6 +72,8 @@ class Term:
     dv: Func | None = None
     kind: str = "stiffness"
     odd: bool = True
+    dq_const: float | None = None
+    dv_const: float | None = None
 
     def __post_init__(self):
         if self.kind not in ("stiffness", "damping"):
@@ -92,6 +97,13 @@ class Term:
             h = _FD_STEP * (1.0 + np.abs(v))
             gv = (self.func(q, v + h) - self.func(q, v - h)) / (2 * h)
         return gq, gv
+
+    def derivative_values(self, q, v):
+        """:meth:`derivatives`, with a derivative declared constant returned as that float."""
+        if self.dq_const is not None and self.dv_const is not None:
+            return self.dq_const, self.dv_const
+        gq, gv = self.derivatives(q, v)
+        return (gq if self.dq_const is None else self.dq_const), (gv if self.dv_const is None else self.dv_const)
 
     def __add__(self, other):
         return TermLibrary((self,)) + other
@@ -161,11 +173,12 @@ class TermLibrary:
     def odd(self) -> bool:
         return all(t.odd for t in self.terms)
 
-    def evaluate(self, q, v) -> np.ndarray:
-        """Regression matrix ``(n_samples, n_terms)`` of the terms at states ``q, v``."""
+    def evaluate(self, q, v, out=None) -> np.ndarray:
+        """Regression matrix ``(n_samples, n_terms)`` of the terms at states ``q, v`` (into ``out``)."""
         q = np.asarray(q, float)
         v = np.asarray(v, float)
-        out = np.empty(q.shape + (len(self.terms),))
+        if out is None:
+            out = np.empty(q.shape + (len(self.terms),))
         for j, t in enumerate(self.terms):
             out[..., j] = t(q, v)
         return out
@@ -222,28 +235,33 @@ def _sgn(v):
 STANDARD_TERMS: dict[str, Term] = {
     t.name: t
     for t in (
-        Term("q", "omega1^2", lambda q, v: q, lambda q, v: np.ones_like(q), lambda q, v: np.zeros_like(q)),
-        Term("-q^3", "k3", lambda q, v: -(q * q * q), lambda q, v: -3.0 * (q * q), lambda q, v: np.zeros_like(q)),
-        Term("q^2", "k2", lambda q, v: q * q, lambda q, v: 2.0 * q, lambda q, v: np.zeros_like(q), odd=False),
+        Term("q", "omega1^2", lambda q, v: q, lambda q, v: np.ones_like(q), lambda q, v: np.zeros_like(q),
+             dq_const=1.0, dv_const=0.0),
+        Term("-q^3", "k3", lambda q, v: -(q * q * q), lambda q, v: -3.0 * (q * q), lambda q, v: np.zeros_like(q),
+             dv_const=0.0),
+        Term("q^2", "k2", lambda q, v: q * q, lambda q, v: 2.0 * q, lambda q, v: np.zeros_like(q), odd=False,
+             dv_const=0.0),
         Term(
             "q^5", "k5", lambda q, v: (q * q) * (q * q) * q, lambda q, v: 5.0 * ((q * q) * (q * q)),
-            lambda q, v: np.zeros_like(q),
+            lambda q, v: np.zeros_like(q), dv_const=0.0,
         ),
-        Term("|q|q", "k_abs", lambda q, v: np.abs(q) * q, lambda q, v: 2 * np.abs(q), lambda q, v: np.zeros_like(q)),
-        Term("q'", "c", lambda q, v: v, lambda q, v: np.zeros_like(v), lambda q, v: np.ones_like(v), kind="damping"),
+        Term("|q|q", "k_abs", lambda q, v: np.abs(q) * q, lambda q, v: 2 * np.abs(q), lambda q, v: np.zeros_like(q),
+             dv_const=0.0),
+        Term("q'", "c", lambda q, v: v, lambda q, v: np.zeros_like(v), lambda q, v: np.ones_like(v), kind="damping",
+             dq_const=0.0, dv_const=1.0),
         Term(
             "|q'|q'", "c_quad", lambda q, v: np.abs(v) * v, lambda q, v: np.zeros_like(v),
-            lambda q, v: 2 * np.abs(v), kind="damping",
+            lambda q, v: 2 * np.abs(v), kind="damping", dq_const=0.0,
         ),
         Term(
             "q'^3", "c_cubic", lambda q, v: v * v * v, lambda q, v: np.zeros_like(v), lambda q, v: 3.0 * (v * v),
-            kind="damping",
+            kind="damping", dq_const=0.0,
         ),
         # Coulomb friction; its derivative is taken as zero away from v = 0 (harmonic balance
         # then relies on the smooth terms for its Jacobian).
         Term(
             "sign(q')", "f_c", lambda q, v: _sgn(v), lambda q, v: np.zeros_like(v),
-            lambda q, v: np.zeros_like(v), kind="damping",
+            lambda q, v: np.zeros_like(v), kind="damping", dq_const=0.0, dv_const=0.0,
         ),
         Term("q^2 q'", "c_qq", lambda q, v: (q * q) * v, lambda q, v: 2.0 * q * v, lambda q, v: q * q, kind="damping"),
     )

@@ -44,9 +44,9 @@ from .regression import reduce_blocks
 
 __all__ = [
     "RecordScores",
+    "FrequencySums",
     "record_scores",
     "record_pass",
-    "reduced_factor",
     "PooledCovariance",
     "pooled_covariance",
     "LowRankCovariance",
@@ -153,6 +153,26 @@ class RecordScores:
     inertia: bool = False  # column 0 is the filtered acceleration with coefficient m (unknown force gain)
     omega_variance: float = 0.0  # of the excitation frequency when it was estimated from the force
     omega_score: np.ndarray | None = field(default=None, repr=False)  # d(score)/d(omega) in term columns
+    omega_sums: FrequencySums | None = field(default=None, repr=False)  # for frequency_score
+
+    def frequency_score(self, theta) -> np.ndarray:
+        """``M d theta / d omega`` (``M = X^T X``): how the regression moves when the record is
+        analysed at another frequency (harmonic fit of the acceleration, integration and
+        regression redone), at coefficients ``theta``; see :class:`FrequencySums`."""
+        f = self.omega_sums
+        theta = np.asarray(theta, float)
+        w = f.omega
+        cq = self.Tq @ (f.alpha_prime - (2.0 / w) * f.alpha)  # d(displacement coefficients)/d omega
+        cv = self.Tv @ (f.alpha_prime - (1.0 / w) * f.alpha)
+        p = theta.size
+        out = np.zeros(p)
+        if self.filtered:  # X^T dy: y = Q - q''_fit moves with the fit
+            out -= f.x_tau_jerk / w + self.phi_b @ f.alpha_prime
+        for k in range(p):
+            for W, D, Y, c in ((f.tau_q, self.phi_dq_b, f.y_dq_b, cq), (f.tau_v, self.phi_dv_b, f.y_dv_b, cv)):
+                out -= theta[k] * (W[k, :p] / w + D[k] @ c)  # X^T (dX theta)
+                out[k] += (W[k, p] - W[k, :p] @ theta) / w + (Y[k] - theta @ D[k]) @ c  # dX^T r
+        return out
 
     def score_terms(self, theta, dtheta_dqmax=None) -> np.ndarray:
         """``X^T D`` (``(p, m)``) in the record's term columns for coefficients ``theta``.
@@ -193,6 +213,46 @@ class RecordScores:
 
 
 
+@dataclass(frozen=True)
+class FrequencySums:
+    """Sums of one record that give the derivative of its regression with respect to the
+    frequency analytically (:meth:`RecordScores.frequency_score`).
+
+    With ``tau`` the time from the fit's origin, ``X`` the term columns, ``y`` the
+    regression's left-hand side, ``g_k`` the derivative of term ``k`` with respect to
+    ``q`` (``tau_q``, ``y_dq_b``) or to ``q'`` (``tau_v``, ``y_dv_b``) and ``B`` the fit's
+    sinusoids: a change of frequency moves a series ``B c`` by ``(tau / omega) B D c``
+    (``D`` the time derivative) and the acceleration's coefficients by ``alpha_prime``.
+
+    Attributes
+    ----------
+    omega : float
+    alpha, alpha_prime : array ``(m,)``
+        The acceleration's coefficients and their derivative with respect to ``omega``.
+    x_tau_jerk : array ``(p,)``
+        ``X^T (tau j)``, ``j`` the time derivative of the filtered acceleration.
+    tau_q, tau_v : array ``(p, p + 1)``
+        Row ``k``: ``[X, y]^T (tau g_k q')`` and ``[X, y]^T (tau g_k (q''_fit - a_0))``.
+    y_dq_b, y_dv_b : array ``(p, m)``
+        Row ``k``: ``(g_k y)^T B``.
+    """
+
+    omega: float
+    alpha: np.ndarray = field(repr=False)
+    alpha_prime: np.ndarray = field(repr=False)
+    x_tau_jerk: np.ndarray = field(repr=False)
+    tau_q: np.ndarray = field(repr=False)
+    tau_v: np.ndarray = field(repr=False)
+    y_dq_b: np.ndarray = field(repr=False)
+    y_dv_b: np.ndarray = field(repr=False)
+
+
+def _derivative_map(omega, n_harmonics) -> np.ndarray:
+    """Matrix ``D`` with ``series.derivative().coefficients = D @ series.coefficients``."""
+    eye = np.eye(n_coefficients(n_harmonics))
+    return np.column_stack([HarmonicSeries(omega, e).derivative().coefficients for e in eye])
+
+
 def _regression_blocks(lib, signals, filtered, inertia):
     """Blocks of the record's regression matrix: ``[X, y_fit, y_raw]`` (force-state mapping,
     ``y = Q - q''``) or, with ``inertia``, ``[q''_fit, X, Q]`` (unknown force gain)."""
@@ -205,13 +265,10 @@ def _regression_blocks(lib, signals, filtered, inertia):
         yield np.column_stack([lib.evaluate(q, v), Q - a_fit if filtered else y_raw, y_raw])
 
 
-def reduced_factor(lib, signals: StateSignals, filtered=True, inertia=False) -> np.ndarray:
-    """``R`` of the record's regression matrix (layout of :func:`record_pass`), streamed."""
-    return reduce_blocks(lambda: _regression_blocks(lib, signals, filtered, inertia), len(lib) + bool(inertia))
-
-
 def _constant(g):
     """The value of ``g`` when it is the same at every sample, else ``None``."""
+    if isinstance(g, float):  # declared constant (Term.dq_const, dv_const)
+        return g
     if g.ndim == 0 or g.strides[0] == 0 or g.min() == g.max():
         return float(g.flat[0])
     return None
@@ -257,12 +314,20 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
     dv_b = np.zeros((p, p, m))
     bF = np.zeros(m)
     gram_w = np.zeros((n_w, n_w))
-    buf = None
+    nl = len(lib)
+    estimated = not signals.frequency_given
+    fsums = estimated and not inertia  # the frequency's derivative sums (see FrequencySums)
+    x_tau_jerk, tau_q, tau_v = np.zeros(p), np.zeros((p, p + 1)), np.zeros((p, p + 1))
+    y_dq_b, y_dv_b, b_tau_a = np.zeros((p, m)), np.zeros((p, m)), np.zeros(m)
+    buf = wbuf = None
     C = signals.series_coefficients()
+    if fsums:
+        C = np.column_stack([C, acc.derivative().coefficients])
     for sl, T, M in signals.basis_factors():
         rows = sl.stop - sl.start
         if buf is None:
-            buf = np.empty((rows, n_w + 2 * len(lib) * p), order="F")
+            buf = np.empty((rows, n_w + 2 * nl * p + (1 + 2 * nl) * fsums), order="F")
+            wbuf = np.empty((rows, 3 + 2 * nl), order="F")
         S = T @ C if M is None else T @ (M @ C)
         q, v, a_fit = S[:, 0], S[:, 1], S[:, 2]
         b = buf[:rows]
@@ -276,26 +341,57 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
                 np.subtract(Q, a_fit, out=b[:, 0])
             else:
                 b[:, 0] = b[:, 1]
-        b[:, ix + off : iq] = lib.evaluate(q, v)
         X = b[:, ix:iq]
+        lib.evaluate(q, v, out=X[:, off:])
         gram_w += b[:, :n_w].T @ b[:, :n_w]
-        col, slots = n_w, []  # (tensor, term row, column of its product with X, or its constant value)
+        col, slots, derivs = n_w, [], []  # slots: (tensor, term row, column of its product with X, or constant)
         for k, t in enumerate(lib):
-            for tensor, g in zip((dq_b, dv_b), t.derivatives(q, v)):
+            for tensor, g in zip((dq_b, dv_b), t.derivative_values(q, v)):
                 c = _constant(g)
+                derivs.append((g, c))
                 if c is None:
                     np.multiply(X, g[:, None], out=b[:, col : col + p])
-                    slots.append((tensor, off + k, col - ix, None))
+                    slots.append((tensor, off + k, col, None))
                     col += p
                 elif c != 0.0:
                     slots.append((tensor, off + k, None, c))
-        U = sum(b[s : s + PASS_CHUNK, ix:col].T @ T[s : s + PASS_CHUNK] for s in range(0, rows, PASS_CHUNK))
+        u0 = ix  # U: the sums of columns u0:col against the sinusoids
+        if fsums:  # y, tau q'' and g_k y against the sinusoids; tau-weighted states against [X, y]
+            u0, ita = 0, col
+            tau = signals.t[sl] - acc.t0
+            np.multiply(tau, signals.accel_measured[sl], out=b[:, ita])
+            col += 1
+            wb = wbuf[:rows]
+            np.multiply(tau, S[:, 3], out=wb[:, 0])
+            np.multiply(tau, v, out=wb[:, 1])
+            np.subtract(a_fit, acc.coefficients[0], out=wb[:, 2])
+            wb[:, 2] *= tau
+            wcol, yslots = 3, []  # (derivative index, column of g y in U or of y, column in P, factor)
+            for i, (g, c) in enumerate(derivs):
+                base = 1 + i % 2  # tau q' (derivative in q) or tau (q'' - a_0) (derivative in q')
+                if c is None:
+                    np.multiply(b[:, 0], g, out=b[:, col])
+                    np.multiply(wb[:, base], g, out=wb[:, wcol])
+                    yslots.append((i, col, wcol, 1.0))
+                    col += 1
+                    wcol += 1
+                elif c != 0.0:
+                    yslots.append((i, 0, base, c))
+            P = np.vstack([X.T @ wb[:, :wcol], b[:, 0] @ wb[:, :wcol]])
+            x_tau_jerk += P[:p, 0]
+        U = sum(b[s : s + PASS_CHUNK, u0:col].T @ T[s : s + PASS_CHUNK] for s in range(0, rows, PASS_CHUNK))
         if M is not None:
             U = U @ M
-        phi_b += U[:p]
-        bF += U[p]
+        phi_b += U[ix - u0 : iq - u0]
+        bF += U[iq - u0]
         for tensor, k, j, c in slots:
-            tensor[k] += U[:p] * c if j is None else U[j : j + p]
+            tensor[k] += U[ix - u0 : iq - u0] * c if j is None else U[j - u0 : j - u0 + p]
+        if fsums:
+            b_tau_a += U[ita - u0]
+            for i, j, w_col, c in yslots:
+                Wt, Yb = (tau_q, y_dq_b) if i % 2 == 0 else (tau_v, y_dv_b)
+                Wt[off + i // 2] += c * P[:, w_col]
+                Yb[off + i // 2] += c * U[j - u0]
     n = signals.t.size
     if inertia:
         perm = np.arange(n_w)
@@ -304,7 +400,6 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
     R = reduce_blocks(lambda: _regression_blocks(lib, signals, filtered, inertia), p, gram=gram_w[np.ix_(perm, perm)])
     gram = gram_w[ix:iq, ix:iq].copy()
     FF = float(gram_w[iq, iq])
-    estimated = not signals.frequency_given
     if estimated:  # the information of the frequency in the force
         G, G1, G2 = signals.basis_gram(weighted=True)
     else:
@@ -324,10 +419,17 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
         u = G1 @ d
         info = float(d @ G2 @ d - u @ linalg.solve(G, u, assume_a="pos"))
         var_w = (rss_F / dof) / info if info > 0 else 0.0
+    freq = None
+    if fsums:  # d alpha / d omega of the acceleration's least-squares fit (G alpha = B^T a)
+        alpha = acc.coefficients
+        D = _derivative_map(omega, H)
+        rhs = D.T @ b_tau_a - (D.T @ G1 + G1 @ D) @ alpha
+        alpha_prime = linalg.solve(G, rhs, assume_a="pos") / omega
+        freq = FrequencySums(float(omega), alpha, alpha_prime, x_tau_jerk, tau_q, tau_v, y_dq_b, y_dv_b)
     scores = RecordScores(
         gram, phi_b, dq_b, dv_b, G, Tq, Tv, _peak_direction(signals.displacement.coefficients, Tq),
         float(np.sqrt(rss_F / dof)), float(signals.accel_residual_rms * np.sqrt(n / dof)), int(n),
-        bool(filtered or inertia), coef_F, bool(inertia), float(var_w),
+        bool(filtered or inertia), coef_F, bool(inertia), float(var_w), omega_sums=freq,
     )
     return R, scores
 

@@ -328,19 +328,27 @@ def _uniform_step(t):
 
 
 @functools.lru_cache(maxsize=6)
-def _table(omega_dt, n_harmonics, rows, weighted):
-    """Basis rows at phases ``omega_dt * j`` (``j < rows``) and their Gram matrix.
-
-    With ``weighted`` the table is ``[T, j T]`` (the sample index times the basis, for
-    derivatives with respect to the frequency).  Returns read-only ``(W, W.T @ W)``.
-    """
+def _sinusoids(omega_dt, n_harmonics, rows):
+    """Read-only basis rows ``[1, cos, sin, ...]`` at phases ``omega_dt * j`` (``j < rows``)."""
     j = np.arange(rows, dtype=float)
     T = np.empty((rows, n_coefficients(n_harmonics)))
     T[:, 0] = 1.0
     kt = np.multiply.outer(omega_dt * j, np.arange(1, n_harmonics + 1))
     T[:, 1::2] = np.cos(kt)
     T[:, 2::2] = np.sin(kt)
-    W = np.hstack([T, j[:, None] * T]) if weighted else T
+    T.flags.writeable = False
+    return T
+
+
+@functools.lru_cache(maxsize=6)
+def _table(omega_dt, n_harmonics, rows, weighted):
+    """Basis rows at phases ``omega_dt * j`` (``j < rows``) and their Gram matrix.
+
+    With ``weighted`` the table is ``[T, j T]`` (the sample index times the basis, for
+    derivatives with respect to the frequency).  Returns read-only ``(W, W.T @ W)``.
+    """
+    T = _sinusoids(omega_dt, n_harmonics, rows)
+    W = np.hstack([T, np.arange(rows, dtype=float)[:, None] * T]) if weighted else T
     gram = W.T @ W
     W.flags.writeable = False
     gram.flags.writeable = False
@@ -673,9 +681,8 @@ class StateSignals:
         H, n = self.acceleration.n_harmonics, self.t.size
         rows = min(int(size), n)
         omega_dt = self.omega * self._uniform_dt
-        T, _ = _table(omega_dt, H, rows, False)
         phase0 = self.omega * (float(self.t[0]) - self.acceleration.t0)
-        return T, _rotations(phase0 + omega_dt * np.arange(0, n, rows), H), rows
+        return _sinusoids(omega_dt, H, rows), _rotations(phase0 + omega_dt * np.arange(0, n, rows), H), rows
 
     def basis_factors(self, size=BLOCK):
         """Iterate ``(slice, T, M)``: the fit's design matrix ``[1, cos, sin, ...]`` of a block
@@ -722,19 +729,20 @@ class StateSignals:
         for sl, T, M in self.basis_factors(size):
             yield sl, (T if M is None else T @ M)
 
-    def basis_gram(self, size=BLOCK, weighted=False):
+    def basis_gram(self, weighted=False):
         """``A^T A`` of the fit's design matrix over the record (``A`` as in :meth:`basis_blocks`).
 
         With ``weighted`` also ``A^T diag(tau) A`` and ``A^T diag(tau^2) A``, ``tau`` the
         time from the fit's origin (the information of the frequency).  On a uniform grid
-        the sums come from the table's own Gram matrices, without a pass over the samples.
+        the sums come from the Gram matrices of one table of ``TABLE_ROWS`` samples,
+        rotated to every block, without a pass over the samples.
         """
         H, n = self.acceleration.n_harmonics, self.t.size
         m = n_coefficients(H)
         G, G1, G2 = np.zeros((m, m)), np.zeros((m, m)), np.zeros((m, m))
-        table = self._rotated_table(size)
+        table = self._rotated_table(TABLE_ROWS)
         if table is None:
-            for sl in _blocks(n, size):
+            for sl in _blocks(n):
                 tau = self.t[sl] - self.acceleration.t0
                 A = _basis(tau, self.omega, H)
                 G += A.T @ A
