@@ -115,3 +115,20 @@ def test_model_backbone_of_power_laws():
         K, C = TRUTH.amplitude_laws["omega1^2"].value(a), TRUTH.amplitude_laws["c"].value(a)
         assert np.all(np.abs(b.omega - np.sqrt(K)) < 4 * b.omega_stderr)
         assert np.all(np.abs(b.zeta - C / (2 * np.sqrt(K))) < 4 * b.zeta_stderr)
+
+
+def test_adequacy_of_micro_slip_plus_cubic():
+    """A law on the stiffness: each level is fitted with the model's own laws before k3 is compared across levels,
+    so the model that made the data holds; the cubic without the laws is flagged."""
+    from jointid.identify.adequacy import check_adequacy
+
+    truth = SingleModeModel("q - q^3 + q'", (0.0, 2e6, 0.0),
+                            {"q": PowerLaw(W2, -3e4, 0.7), "q'": PowerLaw(0.1, 20.0, 0.7)})
+    sigs, lev = campaign(truth, 300, 0.01, n_frequencies=9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        good = check_adequacy(sigs, lev, "q - q^3 + q'", amplitude_laws=LAWS)
+        bad = check_adequacy(sigs, lev, "q - q^3 + q'")
+    assert good.adequate and good.verdict == "the micro-slip + cubic model holds", good.report()
+    assert [e.name for e in good.equality] == ["k3"]
+    assert not bad.adequate and "the cubic model does not hold" in bad.verdict

@@ -31,6 +31,7 @@ from ..conventions import harmonic_index
 from ..errors import IdentificationError
 from .fsm import record_whitenings, split_terms
 from .model import in_band_rows, out_of_band_fraction, score_covariance
+from .terms import library
 from .uncertainty import sandwich, scaled_inverse
 
 __all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equality", "record_adequacy",
@@ -429,10 +430,7 @@ def in_band_level_fits(fits, levels, names=None, weighting="noise") -> tuple:
     sandwich covariance of the records' score covariances.  Returns
     ``(levels, names, values, covariances)`` of the shared parameters ``names`` (default all).
     """
-    lib = fits[0].terms
-    from .terms import library
-
-    lib = library(list(lib))
+    lib = library(list(fits[0].terms))
     p = len(lib)
     shared, own = split_terms(lib)
     all_names = tuple(lib.coefficient_names[i] for i in shared)
@@ -463,6 +461,32 @@ def in_band_level_fits(fits, levels, names=None, weighting="noise") -> tuple:
         out_th.append(x[:k][sel])
         out_cov.append(cov[:k, :k][np.ix_(sel, sel)])
     return tuple(out_lv), tuple(all_names[j] for j in sel), out_th, out_cov
+
+
+def _level_models(model, fits, signals_list, levels, names, weighting, in_band):
+    """The preload model's structure fitted to each force level alone: ``(levels, names, values, covariances)``."""
+    import warnings
+
+    from ..errors import JointidWarning
+    from .model import PreloadForceStateMapping
+
+    laws = {c: L for c, L in zip(model.coefficient_names, model.law_orders) if L != 0}
+    sel = [model.parameter_names.index(n) for n in names]
+    out_lv, out_th, out_cov = [], [], []
+    for lv in dict.fromkeys(levels):
+        idx = [i for i, x in enumerate(levels) if x == lv]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                m = PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
+                                             in_band=in_band).fit([signals_list[i] for i in idx],
+                                                                  fits=[fits[i] for i in idx]).result_
+        except IdentificationError:
+            continue  # too few records for the laws at this level
+        out_lv.append(lv)
+        out_th.append(m.parameters[sel])
+        out_cov.append(m.covariance[np.ix_(sel, sel)])
+    return tuple(out_lv), tuple(names), out_th, out_cov
 
 
 def _in_band_model(model, fits, signals_list, weighting, truncated):
@@ -510,7 +534,15 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
     if model is not None and fits and all(f.scores is not None and f.scores.filtered for f in fits):
         frac = np.max([out_of_band_fraction(f) for f in fits], axis=0)
         truncated = {t: float(x) for t, x in zip(model.terms, frac) if x > OUT_OF_BAND_LIMIT}
-    if truncated:
+    stiffness_law = model is not None and any(
+        L != 0 for t, L in zip(library(list(model.terms)), model.law_orders) if t.kind != "damping")
+    if stiffness_law and constant and fits:
+        # a level's pooled fit has no law on the stiffness, which would then leak into the constant
+        # parameters: each level gets the preload model itself (its laws, fitted to the level alone)
+        lv, names, th, covs = _level_models(model, fits, signals_list, levels, constant, weighting, bool(truncated))
+        eq, chi2, dof, p = (_equality(lv, names, th, covs) if len(lv) >= 2 and names
+                            else ((), float("nan"), 0, float("nan")))
+    elif truncated:
         lv, names, th, covs = in_band_level_fits(fits, levels, constant, weighting)
         eq, chi2, dof, p = (_equality(lv, names, th, covs) if len(lv) >= 2 and names
                             else ((), float("nan"), 0, float("nan")))
