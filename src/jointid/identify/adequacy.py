@@ -17,6 +17,12 @@ Three checks, each with the calibrated covariances of :mod:`jointid.identify.unc
   ``omega1`` with the acquisition order (beside ``q_max``) is a drift;
 * **explained fractions**: of the restoring force ``Q - q''`` (energy), and of its
   harmonics above the first (where the nonlinear terms show).
+
+A term with energy beyond the fitted harmonics (``sign(q')``) is compared with the records
+within the fitted harmonics (:func:`~jointid.identify.model.in_band_rows`): the filtered
+restoring force holds nothing beyond them, so a fit over all harmonics biases such a term and
+would call the model that made the data inadequate.  A model with a law on the stiffness is
+compared across levels through the preload model fitted to each level with its laws.
 """
 
 from __future__ import annotations

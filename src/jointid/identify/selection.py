@@ -24,7 +24,9 @@ The model picked is the simplest one within noise of the best: a candidate with 
 parameter less than three standard errors from zero is not considered (its term is not
 resolved by the data); of the others, those whose criterion is within ``delta`` (2) of the
 lowest are kept, of these those whose cross-validated restoring-force score is within one
-standard error of the best, and of these the one with the fewest parameters wins.  With many candidate terms, :func:`forward_selection` grows the model
+standard error of the best, and of these the one with the fewest parameters wins (at equal
+counts a model linear in its parameters before one with fitted power-law exponents,
+:mod:`jointid.identify.powerlaw`).  With many candidate terms, :func:`forward_selection` grows the model
 one term or law order at a time while the criterion drops by more than ``delta``.
 """
 
