@@ -608,10 +608,16 @@ class _Problem:
             R[:, nx] = qm - peak[0]
             err = np.maximum(err, np.abs(R[:, nx]) / np.maximum(xn, _TINY))
         err = np.where(np.isfinite(err), err, np.inf)
-        out = {"R": R, "err": err, "peak": peak}
+        out = {"R": R, "err": err, "peak": peak, "states": (q, v, th)}
         if jacobian:
             out["J"] = self._jacobian_batch(Z, W, q, v, th, peak)
         return out
+
+    def _jacobian_rows(self, ev, Z, W, rows):
+        """The Jacobians of the rows ``rows`` of a batch evaluated by :meth:`evaluate_batch`."""
+        q, v, th = ev["states"]
+        peak = None if ev["peak"] is None else tuple(p[rows] for p in ev["peak"])
+        return self._jacobian_batch(Z[rows], W[rows], q[rows], v[rows], th if th.shape[0] == 1 else th[rows], peak)
 
     def _jacobian_batch(self, Z, W, q, v, th, peak):
         nx, K = self.active.size, Z.shape[0]
@@ -658,13 +664,13 @@ class _Problem:
         """
         Z = np.array(Z0, float)
         K = Z.shape[0]
-        ev = self.evaluate_batch(Z, W, jacobian=True)
+        ev = self.evaluate_batch(Z, W)
         err = ev["err"]
         peaks = None if ev["peak"] is None else [p.copy() for p in ev["peak"]]
         its = np.zeros(K, int)
         failed = np.zeros(K, bool)
         act = np.flatnonzero(err > tol)
-        J, R = ev["J"][act], ev["R"][act]
+        J, R = self._jacobian_rows(ev, Z, W, act), ev["R"][act]
         while act.size:
             if its[act[0]] >= max_iter:
                 failed[act] = True
@@ -676,7 +682,8 @@ class _Problem:
                 failed[act] = True
                 break
             trial = Z[act] + step
-            et = self.evaluate_batch(trial, W[act], jacobian=True)
+            Wa = W[act]
+            et = self.evaluate_batch(trial, Wa)  # the Jacobian only where another step follows
             ok = np.all(np.isfinite(step), axis=1) & ((et["err"] < err[act]) | (et["err"] <= tol))
             failed[act[~ok]] = True
             sel = act[ok]
@@ -687,7 +694,8 @@ class _Problem:
                     p[sel] = pt[ok]
             more = err[sel] > tol
             act = sel[more]
-            J, R = et["J"][ok][more], et["R"][ok][more]
+            rows = np.flatnonzero(ok)[more]
+            J, R = self._jacobian_rows(et, trial, Wa, rows), et["R"][rows]
         return Z, err, its, ~failed & (err <= tol), peaks
 
     def _fail_msg(self, omega, err, it, tol, why):
@@ -1704,20 +1712,22 @@ def _sweep(problem, omegas, tol):
             k += 1
         if k >= 4:
             ws = np.array(omegas[i : i + k])
-            Z0 = np.array([_extrapolate(hist_w, hist_z, w) for w in ws])
+            Hz = np.array(hist_z)
+            Z0 = _extrapolate3(np.broadcast_to(hist_w, (k, 3)), Hz[None], ws)
             Z, err, its, ok, peaks = problem.newton_batch(Z0, ws, tol)
-            taken = 0
-            for j, w in enumerate(ws):
-                guess = _extrapolate(hist_w, hist_z, float(w))
-                d = Z[j] - guess
-                dist = math.sqrt(d @ d) / max(math.sqrt(Z[j] @ Z[j]), _TINY)
-                if not ok[j] or dist > SAME_BRANCH:
-                    break
+            # each point's one-step predictor from the three before it (history, then batch)
+            allw, allz = np.concatenate([hist_w, ws]), np.concatenate([Hz, Z])
+            win = np.arange(k)[:, None] + np.arange(3)
+            d = Z - _extrapolate3(allw[win], allz[win], ws)
+            dist = np.sqrt(np.einsum("ij,ij->i", d, d)) / np.maximum(np.sqrt(np.einsum("ij,ij->i", Z, Z)), _TINY)
+            bad = ~ok | ~(dist <= SAME_BRANCH)
+            taken = int(np.argmax(bad)) if bad.any() else k
+            for j in range(taken):
                 peak = None if peaks is None else tuple(float(p[j]) for p in peaks)
-                pts.append((float(w), Z[j], {"err": float(err[j]), "peak": peak}, int(its[j])))
-                hist_w, hist_z = (hist_w + [float(w)])[-3:], (hist_z + [Z[j]])[-3:]
-                err1 = dist
-                taken += 1
+                pts.append((float(ws[j]), Z[j], {"err": float(err[j]), "peak": peak}, int(its[j])))
+            if taken:
+                hist_w, hist_z = [float(w) for w in allw[taken : taken + 3]], list(allz[taken : taken + 3])
+                err1 = float(dist[taken - 1])
             i += taken
             if taken == k:
                 continue
@@ -1745,6 +1755,21 @@ def _sweep(problem, omegas, tol):
         hist_z = (hist_z + [z])[-3:]
         i += 1
     return pts
+
+
+def _extrapolate3(wh, zh, w):
+    """:func:`_extrapolate` of many points at once: nodes ``wh`` ``(K, 3)``, solutions ``zh``
+    ``(K, 3, m)`` (or one set broadcast), targets ``w`` ``(K,)``; repeated nodes give the last."""
+    w0, w1, w2 = wh[:, 0], wh[:, 1], wh[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        l0 = (w - w1) / (w0 - w1) * ((w - w2) / (w0 - w2))
+        l1 = (w - w0) / (w1 - w0) * ((w - w2) / (w1 - w2))
+        l2 = (w - w0) / (w2 - w0) * ((w - w1) / (w2 - w1))
+    out = l0[:, None] * zh[:, 0] + l1[:, None] * zh[:, 1] + l2[:, None] * zh[:, 2]
+    same = (w0 == w1) | (w0 == w2) | (w1 == w2)
+    if same.any():
+        out[same] = np.broadcast_to(zh[:, 2], out.shape)[same]
+    return out
 
 
 def _extrapolate(ws, zs, w):
