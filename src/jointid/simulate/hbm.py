@@ -195,8 +195,8 @@ def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
     a, b = x[a_idx], x[b_idx]
     ka, kb = kh * a, kh * b
     # one product gives dq/dtau, d2q/dtau2 and q (less the constant) from cos and sin
-    Mc = np.stack([kb, -(kh * ka), a])
-    Ms = np.stack([-ka, -(kh * kb), b])
+    Mc = np.array([kb, -(kh * ka), a])
+    Ms = np.array([-ka, -(kh * kb), b])
     for _ in range(8):
         ph = tau * kh
         g, d2, _ = Mc @ np.cos(ph) + Ms @ np.sin(ph)
@@ -543,14 +543,15 @@ class _Problem:
         y0, y1, y2 = aq[rows, i - 1], aq[rows, i], aq[rows, (i + 1) % M]
         den = y0 - 2.0 * y1 + y2
         tau0 = i * h
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tau = tau0 + np.where(den < 0.0, 0.5 * h * (y0 - y2) / den, 0.0)
+        tau = tau0 + np.divide(0.5 * h * (y0 - y2), den, out=np.zeros(K), where=den < 0.0)
         a, b = X[:, self.a_idx], X[:, self.b_idx]
         kh = self.kh
         ka, kb = kh * a, kh * b
         # rows of (dq/dtau, d2q/dtau2) against cos and sin of the harmonics
-        Mc = np.stack([kb, -(kh * ka)], axis=1)  # (K, 2, nh)
-        Ms = np.stack([-ka, -(kh * kb)], axis=1)
+        Mc = np.empty((K, 2, kh.size))
+        Ms = np.empty((K, 2, kh.size))
+        Mc[:, 0], Mc[:, 1] = kb, -(kh * ka)
+        Ms[:, 0], Ms[:, 1] = -ka, -(kh * kb)
         run = np.ones(K, bool)
         back = np.zeros(K, bool)
         for _ in range(8):
@@ -558,8 +559,7 @@ class _Problem:
             gd = (Mc @ np.cos(ph)[:, :, None] + Ms @ np.sin(ph)[:, :, None])[:, :, 0]
             g, d2 = gd[:, 0], gd[:, 1]
             run &= d2 != 0.0
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step = np.where(run, g / d2, 0.0)
+            step = np.divide(g, d2, out=np.zeros(K), where=run)
             tau = tau - step
             out = run & (np.abs(tau - tau0) > h)  # left the neighbourhood of the grid maximum
             back |= out
