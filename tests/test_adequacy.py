@@ -164,3 +164,21 @@ def test_coulomb_model_holds_on_coulomb_data_within_the_fitted_harmonics():
     other, lev2 = campaign(TRUTH["cubic"], 2002, 0.005, n_frequencies=11)
     flagged = _check(other, lev2, "q + q' + sign(q')")
     assert not flagged.adequate and "does not hold" in flagged.verdict
+
+
+def test_preload_model_of_coulomb_friction_within_the_fitted_harmonics():
+    """The preload model compares within the fitted harmonics by itself when a term has energy beyond them."""
+    from jointid.identify.model import PreloadForceStateMapping
+
+    sigs, _ = campaign(TRUTH["Coulomb + viscous"], 2003, 0.01, n_frequencies=9, n_time=4096)
+    laws = {"q'": 2}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        band = PreloadForceStateMapping("q + q' + sign(q')", amplitude_laws=laws).fit(sigs).result_
+        full = PreloadForceStateMapping("q + q' + sign(q')", amplitude_laws=laws, in_band=False).fit(sigs).result_
+    assert band.in_band and not full.in_band and band.summary()["in_band"] is True
+    assert abs(band.get("f_c") - 0.1) < 4 * band.get_stderr("f_c")
+    assert full.get("f_c") < 0.1 - 10 * full.get_stderr("f_c")  # square-wave harmonics beyond the 5th left out
+    # a model without such terms is fitted as before
+    cubic = PreloadForceStateMapping("q - q^3 + q'").fit(sigs).result_
+    assert not cubic.in_band

@@ -77,14 +77,16 @@ def _select(sigs, lev, **kw):
     ("amplitude-dependent stiffness", 5, 0.01),
 ])
 def test_generating_family_selected(family, seed, noise):
-    sigs, lev = campaign(TRUTH[family], seed, noise, n_frequencies=7)
+    # Coulomb friction's switching instants need a fine harmonic-balance time grid to make exact data
+    n_time = 4096 if family == "Coulomb + viscous" else None
+    sigs, lev = campaign(TRUTH[family], seed, noise, n_frequencies=7, n_time=n_time)
     sel = _select(sigs, lev, cv_amplitude=False, fit_selected=False)
     assert sel.selected == family, sel.report()
     assert not spurious_resolved(sel, TRUTH[family])
-    # the generating model explains the data to the noise (calibrated chi-square), the others do not
+    # the generating model explains the data to the noise (calibrated chi-square; sign(q') compared
+    # within the fitted harmonics), the others do not
     s = sel.selected_score
-    if family != "Coulomb + viscous":  # a truncated harmonic balance of Coulomb friction is not exact
-        assert s.chi2 / s.dof < 1.6, sel.report()
+    assert s.chi2 / s.dof < 1.6, sel.report()
 
 
 def test_ranking_table_amplitude_cv_and_selected_model():

@@ -36,7 +36,7 @@ from scipy import linalg, stats
 from ..conventions import harmonic_index
 from ..errors import IdentificationError
 from .fsm import record_whitenings, split_terms
-from .model import in_band_rows, out_of_band_fraction, score_covariance
+from .model import OUT_OF_BAND_LIMIT, in_band_rows, out_of_band_fraction, score_covariance
 from .terms import library
 from .uncertainty import sandwich, scaled_inverse
 
@@ -53,10 +53,6 @@ OUTLIER_MEDIAN_LIMIT = 3.0
 MISFIT_LIMIT = 10.0
 #: |t| of the order trend of the own omega1 above which a group drifts.
 DRIFT_T = 5.0
-#: A term column with more than this fraction of its energy beyond the fitted harmonics is
-#: compared with the records within the fitted harmonics (sign(q'): 0.067 with 5 harmonics;
-#: |q|q, |q'|q': about 1e-4; polynomials of the fitted motion: below 1e-6).
-OUT_OF_BAND_LIMIT = 1e-3
 
 
 def _p_text(p) -> str:
@@ -496,26 +492,32 @@ def _level_models(model, fits, signals_list, levels, names, weighting, in_band):
 
 
 def _in_band_model(model, fits, signals_list, weighting, truncated):
-    """The preload model refitted within the fitted harmonics, and a note on what that changes."""
+    """The preload model within the fitted harmonics, and a note on what a fit over all harmonics changes."""
     import warnings
 
     from ..errors import JointidWarning
     from .model import PreloadForceStateMapping
 
     laws = {c: L for c, L in zip(model.coefficient_names, model.law_orders) if L != 0}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointidWarning)
-        band = PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
-                                        preload=model.preload, in_band=True).fit(signals_list, fits=fits).result_
+
+    def fit(in_band):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointidWarning)
+            return PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
+                                            preload=model.preload, in_band=in_band).fit(signals_list,
+                                                                                        fits=fits).result_
+
+    band = model if model.in_band else fit(True)
+    full = model if not model.in_band else fit(False)
     H = fits[0].scores.phi_b.shape[1] // 2
     what = ", ".join(f"{t} {100 * x:.2g} %" for t, x in truncated.items())
     note = (f"terms with energy beyond the {H} fitted harmonics ({what}): the records are compared with the model "
             f"within the fitted harmonics")
-    z = (model.parameters - band.parameters) / np.where(band.stderr > 0, band.stderr, np.inf)
+    z = (full.parameters - band.parameters) / np.where(band.stderr > 0, band.stderr, np.inf)
     biased = [f"{n} {v:.4g} (within the band {b:.4g} ± {e:.2g})" for n, v, b, e, t in
-              zip(model.parameter_names, model.parameters, band.parameters, band.stderr, z) if abs(t) > 3]
+              zip(full.parameter_names, full.parameters, band.parameters, band.stderr, z) if abs(t) > 3]
     if biased:
-        note += f"; the filtered regression over all harmonics biases {'; '.join(biased)}"
+        note += f"; a fit over all harmonics (as the records' own fits) biases {'; '.join(biased)}"
     return band, note
 
 

@@ -36,7 +36,7 @@ from .terms import library
 from .uncertainty import ci95, sandwich, scaled_inverse
 
 __all__ = ["PreloadModel", "PreloadForceStateMapping", "law_orders", "law_size", "parameter_names", "expand",
-           "fit_laws", "in_band_rows", "out_of_band_fraction"]
+           "fit_laws", "in_band_rows", "out_of_band_fraction", "use_in_band"]
 
 
 def law_size(order) -> int:
@@ -245,6 +245,26 @@ def in_band_rows(fit, whitening):
     return whitening.W @ D, whitening.W @ whitening.z
 
 
+#: A term column with more than this fraction of its energy beyond the fitted harmonics is
+#: compared with the records within the fitted harmonics (``sign(q')``: 0.067 with 5 harmonics;
+#: ``|q|q``, ``|q'|q'``: about 1e-4; polynomials of the fitted motion: below 1e-6).
+OUT_OF_BAND_LIMIT = 1e-3
+
+
+def use_in_band(fits, in_band="auto") -> bool:
+    """Whether records are compared with a model within the fitted harmonics.
+
+    ``"auto"``: when every record fits the filtered restoring force and some term has more
+    than ``OUT_OF_BAND_LIMIT`` of its energy beyond the fitted harmonics (for the others the
+    in-band rows are the ordinary ones).
+    """
+    if in_band != "auto":
+        return bool(in_band)
+    if not fits or not all(f.scores is not None and f.scores.filtered for f in fits):
+        return False
+    return bool(np.max([out_of_band_fraction(f) for f in fits]) > OUT_OF_BAND_LIMIT)
+
+
 def out_of_band_fraction(fit) -> np.ndarray:
     """Fraction of each term column's energy beyond the fitted harmonics (``1 - Phi_j^T P Phi_j / Phi_j^T Phi_j``)."""
     sc = fit.scores
@@ -287,6 +307,8 @@ class PreloadModel:
     condition_number : float
     n_samples : int
     warnings : tuple of str
+    in_band : bool
+        Fitted within the fitted harmonics (:func:`in_band_rows`).
     """
 
     preload: object
@@ -303,6 +325,7 @@ class PreloadModel:
     condition_number: float = float("nan")
     n_samples: int = 0
     warnings: tuple = ()
+    in_band: bool = False
 
     @property
     def n_records(self) -> int:
@@ -406,6 +429,7 @@ class PreloadModel:
             "frequency_hz_range": [float(np.min(self.frequency_hz)), float(np.max(self.frequency_hz))],
             "condition_number": float(self.condition_number),
             "warnings": list(self.warnings),
+            "in_band": bool(self.in_band),
         }
 
     def report(self) -> str:
@@ -467,10 +491,11 @@ class PreloadForceStateMapping:
     filtered : bool
     preload : object
         Label stored on the result.
-    in_band : bool
+    in_band : bool or "auto"
         Compare the model with the records within the fitted harmonics (:func:`in_band_rows`;
         filtered records only): removes the bias of terms with harmonics beyond the fitted
-        ones (``sign(q')``); identical for terms within the band.
+        ones (``sign(q')``); the same rows for terms within the band.  ``"auto"``
+        (:func:`use_in_band`): when a term has energy beyond the fitted harmonics.
 
     Attributes
     ----------
@@ -479,7 +504,7 @@ class PreloadForceStateMapping:
     """
 
     def __init__(self, terms="q + -q^3 + q'", amplitude_laws=None, damping_order=2, weighting="noise",
-                 cond_limit=COND_LIMIT, filtered=True, preload=None, in_band=False):
+                 cond_limit=COND_LIMIT, filtered=True, preload=None, in_band="auto"):
         self.terms = terms
         self.amplitude_laws = amplitude_laws
         self.damping_order = damping_order
@@ -509,7 +534,8 @@ class PreloadForceStateMapping:
         q_max = np.array([f.q_max for f in fits])
         n_total = int(sum(f.n_samples for f in fits))
         wh = record_whitenings(fits, self.weighting)
-        if self.in_band:
+        in_band = use_in_band(fits, self.in_band)
+        if in_band:
             if not all(f.scores.filtered for f in fits):
                 raise IdentificationError(f"{context}in_band needs records fitted to the filtered restoring force")
             rows = [in_band_rows(f, w) for f, w in zip(fits, wh)]
@@ -521,7 +547,7 @@ class PreloadForceStateMapping:
         V = np.zeros((P, P))
         for w, f, q, r in zip(wh, fits, q_max, rows):
             coef, E, slope = expand(orders, q, theta)
-            V += E.T @ score_covariance(w, f.scores.covariance(coef, slope), r[0] if self.in_band else None) @ E
+            V += E.T @ score_covariance(w, f.scores.covariance(coef, slope), r[0] if in_band else None) @ E
         cov = sandwich(M, V)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         warn = []
@@ -536,9 +562,10 @@ class PreloadForceStateMapping:
         for w_ in warn:
             warnings.warn(w_, IllConditionedWarning, stacklevel=3)
         self.library_ = lib
+        self.in_band_ = in_band
         self.coef_, self.stderr_, self.covariance_ = theta, se, cov
         self.result_ = PreloadModel(
             self.preload, lib.names, lib.coefficient_names, orders, names, theta, se, cov, q_max,
-            np.array([s.frequency_hz for s in sigs]), weights, cond, n_total, tuple(warn),
+            np.array([s.frequency_hz for s in sigs]), weights, cond, n_total, tuple(warn), in_band,
         )
         return self

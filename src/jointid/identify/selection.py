@@ -43,7 +43,8 @@ from scipy import linalg
 from .._blas import single_threaded
 from ..errors import IdentificationError, JointidError, JointidWarning
 from .fsm import own_fits, pooled_inputs, record_whitenings
-from .model import PreloadForceStateMapping, expand, fit_laws, law_orders, law_size, parameter_names
+from .model import (PreloadForceStateMapping, expand, fit_laws, in_band_rows, law_orders, law_size, parameter_names,
+                    score_covariance, use_in_band)
 from .powerlaw import POWER, PowerLaw, is_power
 from .regression import lstsq_from_reduced
 from .terms import TermLibrary, library
@@ -374,10 +375,14 @@ class _Space:
         wh = record_whitenings(fits, weighting)
         self.records = []
         lam = []
+        # within the fitted harmonics when a term (sign(q')) has energy beyond them; the rows of the
+        # other terms are the same either way
+        self.in_band = use_in_band(fits)
         for s, f, w in zip(sigs, fits, wh):
             fc = f.scores.force_coefficients
             forcing = float(np.hypot(fc[1], fc[2])) if fc is not None and np.all(np.isfinite(fc[:3])) else float("nan")
-            self.records.append(_Record(w.rows, float(f.q_max), float(s.omega), forcing, f, w))
+            rows = np.column_stack(in_band_rows(f, w)) if self.in_band else w.rows
+            self.records.append(_Record(rows, float(f.q_max), float(s.omega), forcing, f, w))
             # covariance of the weighted reduced error W (z - R theta) under the noise model
             V = f.scores.covariance(f.coefficients)
             A = linalg.solve_triangular(w.R, V, trans="T", check_finite=False)
@@ -425,7 +430,8 @@ class _Space:
             Ec[cols] = E
             cc, sc = np.zeros(self.p), np.zeros(self.p)
             cc[cols], sc[cols] = coef, slope
-            Vs = r.whitening.score_covariance(r.fit.scores.covariance(cc, sc))
+            Vs = score_covariance(r.whitening, r.fit.scores.covariance(cc, sc),
+                                  r.rows[:, :self.p] if self.in_band else None)
             V += Ec.T @ Vs @ Ec
         return sandwich(A.T @ A, V)
 
