@@ -13,10 +13,10 @@ import time
 
 import numpy as np
 
+from bench_speed import record  # the same benchmark record (this folder is on the path when run as a script)
+
 from jointid.identify.fsm import ForceStateMapping
 from jointid.signal.harmonics import steady_state_signals
-from jointid.simulate.hbm import steady_state
-from jointid.simulate.model import seed_model
 
 
 def best_of(fn, repeat=5):
@@ -28,17 +28,8 @@ def best_of(fn, repeat=5):
     return min(times)
 
 
-def main(n=1_000_000):
-    model = seed_model()
-    state = steady_state(model, 169.0, 1.0, n_harmonics=9)
-    fs = 20000.0
-    t = np.arange(n) / fs
-    rng = np.random.default_rng(0)
-    Q = state.force(t)
-    a = state.acceleration(t)
-    Q = Q + 0.01 * Q.std() * rng.standard_normal(n)
-    a = a + 0.01 * a.std() * rng.standard_normal(n)
-    f = 169.0 / (2 * np.pi)
+def main(n=1_000_000, fs=20000.0):
+    t, Q, a, f = record(n, fs)
 
     def stream():
         return float(np.sum(Q)) + float(np.sum(a)) + float(np.sum(t))
