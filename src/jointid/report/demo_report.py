@@ -352,11 +352,19 @@ def demo_sections(demo, figs) -> list:
     lin.tables.append(("updated model against the rig", rows, None))
     lin.figures += fig("fig09_linear_frf")
 
+    selected = {pr.preload: getattr((pr.result.selections or {}).get(pr.preload), "selected", None)
+                for pr in demo.preloads}
+    if any(selected.values()):
+        which = ("The single-mode model the data select for each preload (column 'model': its terms and amplitude "
+                 "laws fitted over all the preload's force levels; the seed cubic is judged in the adequacy "
+                 "section)")
+    else:
+        which = ("The identified single-mode model of each preload and force level (omega1 and k3 of that level, "
+                 "the preload's damping law c(q_max))")
     nl = Section("Nonlinear FRFs and re-prediction (seed Fig 10)", [
-        "Stepped sine at constant force amplitude around mode 1. The identified single-mode model of each preload "
-        "and force level (omega1 and k3 of that level, the preload's damping law c(q_max)) is solved by harmonic "
-        "balance with the modal force phi_1(x_f) F; its peak is compared with the peak of the rig's exact steady "
-        "states (both refined by a parabola through the three highest points)."])
+        "Stepped sine at constant force amplitude around mode 1. " + which + " is solved by harmonic balance with "
+        "the modal force phi_1(x_f) F; its peak is compared with the peak of the rig's exact steady states (both "
+        "located by halving the frequency intervals beside the highest point, then a parabola)."])
     rows = []
     for pr in demo.preloads:
         for r in pr.repredictions:
@@ -364,7 +372,8 @@ def demo_sections(demo, figs) -> list:
                          "peak f rig [Hz]": r.peak_exact[0], "peak f model [Hz]": r.peak_predicted[0],
                          "f error [%]": r.peak_frequency_error_percent,
                          "peak |a/F| rig": r.peak_exact[1], "peak |a/F| model": r.peak_predicted[1],
-                         "amplitude error [%]": r.peak_amplitude_error_percent})
+                         "amplitude error [%]": r.peak_amplitude_error_percent,
+                         "model": selected[pr.preload] or "seed cubic"})
     nl.tables.append(("peaks of the nonlinear FRFs", rows, None))
     nl.figures += fig("fig10_nonlinear_frf")
 
