@@ -99,11 +99,17 @@ class Term:
         return gq, gv
 
     def derivative_values(self, q, v):
-        """:meth:`derivatives`, with a derivative declared constant returned as that float."""
-        if self.dq_const is not None and self.dv_const is not None:
-            return self.dq_const, self.dv_const
-        gq, gv = self.derivatives(q, v)
-        return (gq if self.dq_const is None else self.dq_const), (gv if self.dv_const is None else self.dv_const)
+        """:meth:`derivatives`, with a derivative declared constant returned as that float
+        (and not evaluated)."""
+        gq, gv = self.dq_const, self.dv_const
+        if gq is None and gv is not None and self.dq is not None:
+            return np.broadcast_to(np.asarray(self.dq(q, v), float), np.shape(q)), gv
+        if gv is None and gq is not None and self.dv is not None:
+            return gq, np.broadcast_to(np.asarray(self.dv(q, v), float), np.shape(v))
+        if gq is None or gv is None:
+            a, b = self.derivatives(q, v)
+            gq, gv = (a if gq is None else gq), (b if gv is None else gv)
+        return gq, gv
 
     def __add__(self, other):
         return TermLibrary((self,)) + other

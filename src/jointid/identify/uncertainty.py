@@ -306,9 +306,9 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
     H, omega = acc.n_harmonics, signals.omega
     off = 1 if inertia else 0
     m, p = n_coefficients(H), len(lib) + off
-    pre = 0 if inertia else 2  # the columns y_fit, y_raw come first
+    pre = 0 if inertia else 2  # the columns y_raw, y_fit come first
     ix, iq = pre, pre + p  # columns of X and of Q
-    n_w = iq + 1  # [y_fit, y_raw,] X, Q: their Gram gives R and the score Gram
+    n_w = iq + 1  # [y_raw, y_fit,] X, Q: their Gram gives R and the score Gram
     phi_b = np.zeros((p, m))
     dq_b = np.zeros((p, p, m))
     dv_b = np.zeros((p, p, m))
@@ -328,19 +328,19 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
         if buf is None:
             buf = np.empty((rows, n_w + 2 * nl * p + (1 + 2 * nl) * fsums), order="F")
             wbuf = np.empty((rows, 3 + 2 * nl), order="F")
-        S = T @ C if M is None else T @ (M @ C)
-        q, v, a_fit = S[:, 0], S[:, 1], S[:, 2]
+        S = (C if M is None else M @ C).T @ T.T  # one contiguous row per state
+        q, v, a_fit = S[0], S[1], S[2]
         b = buf[:rows]
         Q = b[:, iq]
         Q[:] = signals.force[sl]  # a fresh (aligned) copy: sums independent of the input's memory layout
         if inertia:
             b[:, 0] = a_fit
         else:
-            np.subtract(Q, signals.accel_measured[sl], out=b[:, 1])
+            np.subtract(Q, signals.accel_measured[sl], out=b[:, 0])
             if filtered:
-                np.subtract(Q, a_fit, out=b[:, 0])
+                np.subtract(Q, a_fit, out=b[:, 1])
             else:
-                b[:, 0] = b[:, 1]
+                b[:, 1] = b[:, 0]
         X = b[:, ix:iq]
         lib.evaluate(q, v, out=X[:, off:])
         gram_w += b[:, :n_w].T @ b[:, :n_w]
@@ -357,12 +357,12 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
                     slots.append((tensor, off + k, None, c))
         u0 = ix  # U: the sums of columns u0:col against the sinusoids
         if fsums:  # y, tau q'' and g_k y against the sinusoids; tau-weighted states against [X, y]
-            u0, ita = 0, col
+            u0, ita = 1, col  # column 1 is y
             tau = signals.t[sl] - acc.t0
             np.multiply(tau, signals.accel_measured[sl], out=b[:, ita])
             col += 1
             wb = wbuf[:rows]
-            np.multiply(tau, S[:, 3], out=wb[:, 0])
+            np.multiply(tau, S[3], out=wb[:, 0])
             np.multiply(tau, v, out=wb[:, 1])
             np.subtract(a_fit, acc.coefficients[0], out=wb[:, 2])
             wb[:, 2] *= tau
@@ -370,14 +370,15 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
             for i, (g, c) in enumerate(derivs):
                 base = 1 + i % 2  # tau q' (derivative in q) or tau (q'' - a_0) (derivative in q')
                 if c is None:
-                    np.multiply(b[:, 0], g, out=b[:, col])
+                    np.multiply(b[:, 1], g, out=b[:, col])
                     np.multiply(wb[:, base], g, out=wb[:, wcol])
                     yslots.append((i, col, wcol, 1.0))
                     col += 1
                     wcol += 1
                 elif c != 0.0:
-                    yslots.append((i, 0, base, c))
-            P = np.vstack([X.T @ wb[:, :wcol], b[:, 0] @ wb[:, :wcol]])
+                    yslots.append((i, 1, base, c))
+            P = b[:, 1:iq].T @ wb[:, :wcol]  # rows y, X
+            P = np.vstack([P[1:], P[:1]])  # rows X, y
             x_tau_jerk += P[:p, 0]
         U = sum(b[s : s + PASS_CHUNK, u0:col].T @ T[s : s + PASS_CHUNK] for s in range(0, rows, PASS_CHUNK))
         if M is not None:
@@ -396,7 +397,7 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
     if inertia:
         perm = np.arange(n_w)
     else:
-        perm = np.r_[ix:iq, 0, 1]
+        perm = np.r_[ix:iq, 1, 0]
     R = reduce_blocks(lambda: _regression_blocks(lib, signals, filtered, inertia), p, gram=gram_w[np.ix_(perm, perm)])
     gram = gram_w[ix:iq, ix:iq].copy()
     FF = float(gram_w[iq, iq])

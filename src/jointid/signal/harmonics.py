@@ -716,8 +716,8 @@ class StateSignals:
         """
         C = self.series_coefficients()
         for sl, T, M in self.basis_factors(size):
-            S = T @ C if M is None else T @ (M @ C)
-            yield sl, S[:, 0], S[:, 1], S[:, 2]
+            S = (C if M is None else M @ C).T @ T.T  # one contiguous row per state
+            yield sl, S[0], S[1], S[2]
 
     def basis_blocks(self, size=BLOCK):
         """Iterate ``(slice, A)``: the fit's design matrix ``[1, cos, sin, ...]`` block by block.
