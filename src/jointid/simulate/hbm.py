@@ -1681,6 +1681,8 @@ def _assemble(problem, pts, folds, method, stability):
 
 #: Predictor error (relative) up to which frequencies are solved together in a sweep.
 BATCH_GUESS = 1e-2
+#: Solutions the sweep's predictor extrapolates through (polynomial of degree HISTORY - 1).
+HISTORY = 4
 #: Longest batch of a sweep.
 BATCH_MAX = 64
 #: Relative distance from the one-step predictor within which a batched solution is the
@@ -1689,13 +1691,14 @@ SAME_BRANCH = 0.02
 
 
 def _sweep(problem, omegas, tol):
-    """Sequential solutions at ``omegas``; predictor: polynomial extrapolation (secant,
-    then quadratic) through the previous solutions, falling back to the previous
-    solution and to a fresh start.
+    """Sequential solutions at ``omegas``; predictor: polynomial extrapolation through the
+    last ``HISTORY`` solutions (secant, quadratic, then cubic: on the seed's sweep the
+    cubic's one-step error is 25 times the quadratic's smaller), falling back to the
+    previous solution and to a fresh start.
 
     Where the response is smooth the predictor stays accurate many points ahead: the
-    last one-step predictor error ``e`` grows about as ``k^3 e`` over ``k`` steps, and
-    while that stays below ``BATCH_GUESS`` the next points are solved together by
+    last one-step predictor error ``e`` grows about as ``binomial(k + HISTORY, HISTORY) e``
+    over ``k`` steps, and while that stays below ``BATCH_GUESS`` the next points are solved together by
     :meth:`_Problem.newton_batch`.  A batched solution is kept while it converged with
     full steps and lies within ``SAME_BRANCH`` of the one-step predictor (the branch the
     point-by-point sweep follows); the first other point is solved alone as before,
@@ -1706,19 +1709,20 @@ def _sweep(problem, omegas, tol):
     hist_w, hist_z = [], []
     err1 = np.inf  # relative error of the last one-step prediction
     i, n = 0, len(omegas)
+    nh = HISTORY
     while i < n:
         k = 0
-        while len(hist_z) == 3 and k < min(BATCH_MAX, n - i) and err1 * (k + 1) * (k + 2) * (k + 3) / 6 <= BATCH_GUESS:
+        while len(hist_z) == nh and k < min(BATCH_MAX, n - i) and err1 * math.comb(k + nh, nh) <= BATCH_GUESS:
             k += 1
         if k >= 4:
             ws = np.array(omegas[i : i + k])
             Hz = np.array(hist_z)
-            Z0 = _extrapolate3(np.broadcast_to(hist_w, (k, 3)), Hz[None], ws)
+            Z0 = _extrapolate_many(np.broadcast_to(hist_w, (k, nh)), Hz[None], ws)
             Z, err, its, ok, peaks = problem.newton_batch(Z0, ws, tol)
-            # each point's one-step predictor from the three before it (history, then batch)
+            # each point's one-step predictor from the points before it (history, then batch)
             allw, allz = np.concatenate([hist_w, ws]), np.concatenate([Hz, Z])
-            win = np.arange(k)[:, None] + np.arange(3)
-            d = Z - _extrapolate3(allw[win], allz[win], ws)
+            win = np.arange(k)[:, None] + np.arange(nh)
+            d = Z - _extrapolate_many(allw[win], allz[win], ws)
             dist = np.sqrt(np.einsum("ij,ij->i", d, d)) / np.maximum(np.sqrt(np.einsum("ij,ij->i", Z, Z)), _TINY)
             bad = ~ok | ~(dist <= SAME_BRANCH)
             taken = int(np.argmax(bad)) if bad.any() else k
@@ -1726,7 +1730,7 @@ def _sweep(problem, omegas, tol):
                 peak = None if peaks is None else tuple(float(p[j]) for p in peaks)
                 pts.append((float(ws[j]), Z[j], {"err": float(err[j]), "peak": peak}, int(its[j])))
             if taken:
-                hist_w, hist_z = [float(w) for w in allw[taken : taken + 3]], list(allz[taken : taken + 3])
+                hist_w, hist_z = [float(w) for w in allw[taken : taken + nh]], list(allz[taken : taken + nh])
                 err1 = float(dist[taken - 1])
             i += taken
             if taken == k:
@@ -1751,24 +1755,28 @@ def _sweep(problem, omegas, tol):
         pts.append((w, z, ev, it))
         if jumped:
             hist_w, hist_z = [], []  # a jump: restart the predictor
-        hist_w = (hist_w + [w])[-3:]
-        hist_z = (hist_z + [z])[-3:]
+        hist_w = (hist_w + [w])[-nh:]
+        hist_z = (hist_z + [z])[-nh:]
         i += 1
     return pts
 
 
-def _extrapolate3(wh, zh, w):
-    """:func:`_extrapolate` of many points at once: nodes ``wh`` ``(K, 3)``, solutions ``zh``
-    ``(K, 3, m)`` (or one set broadcast), targets ``w`` ``(K,)``; repeated nodes give the last."""
-    w0, w1, w2 = wh[:, 0], wh[:, 1], wh[:, 2]
+def _extrapolate_many(wh, zh, w):
+    """:func:`_extrapolate` of many points at once: nodes ``wh`` ``(K, n)``, solutions ``zh``
+    ``(K, n, m)`` (or one set broadcast), targets ``w`` ``(K,)``; repeated nodes give the last."""
+    n = wh.shape[1]
+    out = np.zeros((w.size, zh.shape[-1]))
+    same = np.zeros(w.size, bool)
     with np.errstate(divide="ignore", invalid="ignore"):
-        l0 = (w - w1) / (w0 - w1) * ((w - w2) / (w0 - w2))
-        l1 = (w - w0) / (w1 - w0) * ((w - w2) / (w1 - w2))
-        l2 = (w - w0) / (w2 - w0) * ((w - w1) / (w2 - w1))
-    out = l0[:, None] * zh[:, 0] + l1[:, None] * zh[:, 1] + l2[:, None] * zh[:, 2]
-    same = (w0 == w1) | (w0 == w2) | (w1 == w2)
+        for i in range(n):
+            li = np.ones(w.size)
+            for j in range(n):
+                if j != i:
+                    li = li * ((w - wh[:, j]) / (wh[:, i] - wh[:, j]))
+                    same |= wh[:, i] == wh[:, j]
+            out += li[:, None] * zh[:, i]
     if same.any():
-        out[same] = np.broadcast_to(zh[:, 2], out.shape)[same]
+        out[same] = np.broadcast_to(zh[:, -1], out.shape)[same]
     return out
 
 
