@@ -66,13 +66,22 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 def cpu_median(fn, repeat):
     """Median CPU time [s] of ``fn()`` over ``repeat`` runs (after one warm-up run)."""
-    fn()
-    times = []
-    for _ in range(repeat):
-        t = time.process_time()
+    return cpu_medians([fn], repeat)[0]
+
+
+def cpu_medians(fns, repeat):
+    """Median CPU times [s] of several functions run in turn, ``repeat`` rounds (after a
+    warm-up round): each sees the same load of the machine, so their ratios are fair."""
+    fns = [fn for fn in fns if fn is not None]
+    for fn in fns:
         fn()
-        times.append(time.process_time() - t)
-    return float(np.median(times))
+    times = [[] for _ in fns]
+    for _ in range(repeat):
+        for fn, ts in zip(fns, times):
+            t = time.process_time()
+            fn()
+            ts.append(time.process_time() - t)
+    return [float(np.median(ts)) for ts in times]
 
 
 def reference_package():
@@ -149,12 +158,15 @@ def main(argv=None):
 
     res = {}
     for key, freq, goal in (("given", f, 60.0), ("estimated", None, 80.0)):
-        new = cpu_median(chain(new_pkg, freq), rep)
-        old = (cpu_median(chain(ref_pkg, freq), rep) if ref is not None
-               else RECORDED[key] / 1e3)
-        sig_new = cpu_median(lambda f=freq: steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
-        sig_old = (cpu_median(lambda f=freq: ref.harmonics.steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5), rep)
-                   if ref is not None else None)
+        if ref is not None:
+            new, old, sig_new, sig_old = cpu_medians([
+                chain(new_pkg, freq), chain(ref_pkg, freq),
+                lambda f=freq: steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5),
+                lambda f=freq: ref.harmonics.steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5)], rep)
+        else:
+            new, sig_new = cpu_medians([
+                chain(new_pkg, freq), lambda f=freq: steady_state_signals(t, Q, a, frequency_hz=f, n_harmonics=5)], rep)
+            old, sig_old = RECORDED[key] / 1e3, None
         res[key] = new
         label = "frequency given and checked" if key == "given" else "frequency estimated"
         row(f"identify 1e6 samples, {label}", new, old, ref_note, RECORDED[key], goal)
@@ -166,22 +178,23 @@ def main(argv=None):
     # ---------------------------------------------------------------- harmonic balance
     model = seed_model()
     omegas = np.linspace(160.0, 180.0, 401)
-    sweep = cpu_median(lambda: frequency_response(model, 1.0, omegas), rep)
     ref_model = ref.model.seed_model() if ref is not None else None
-    sweep_old = (cpu_median(lambda: ref.hbm.frequency_response(ref_model, 1.0, omegas), rep) if ref is not None
-                 else RECORDED["sweep"] / 1e3)
+    sweep, *sweep_old = cpu_medians([lambda: frequency_response(model, 1.0, omegas),
+                                     ref and (lambda: ref.hbm.frequency_response(ref_model, 1.0, omegas))], rep)
+    sweep_old = sweep_old[0] if sweep_old else RECORDED["sweep"] / 1e3
     row("401-point sweep, seed model, c(q_max) closure", sweep, sweep_old, ref_note, RECORDED["sweep"], 40.0)
 
     c = SEED_DUFFING_CURVE
     kw = {"omega_range": c["omega_range"], "n_harmonics": c["n_harmonics"], "n_time": c["n_time"]}
     duffing = SingleModeModel(c["terms"], c["coefficients"])
     curve = frequency_response(duffing, c["force_amplitude"], **kw)
-    cont = cpu_median(lambda: frequency_response(duffing, c["force_amplitude"], **kw), rep)
     if ref is not None:
         ref_duffing = ref.model.SingleModeModel(c["terms"], c["coefficients"])
-        cont_old = cpu_median(lambda: ref.hbm.frequency_response(ref_duffing, c["force_amplitude"], **kw), rep)
+        cont, cont_old = cpu_medians([lambda: frequency_response(duffing, c["force_amplitude"], **kw),
+                                      lambda: ref.hbm.frequency_response(ref_duffing, c["force_amplitude"], **kw)], rep)
         n_old = len(ref.hbm.frequency_response(ref_duffing, c["force_amplitude"], **kw))
     else:
+        cont = cpu_median(lambda: frequency_response(duffing, c["force_amplitude"], **kw), rep)
         cont_old, n_old = RECORDED["curve"] / 1e3, 88
     row(f"SEED_DUFFING_CURVE continuation ({len(curve)} points)", cont, cont_old, ref_note, RECORDED["curve"], 21.6)
     per_point, per_point_old = cont * 1e3 / len(curve), cont_old * 1e3 / n_old
