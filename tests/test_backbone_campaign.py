@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from jointid.app.backbones import backbone_from_campaign, backbones_from_results, preload_model_backbone
+from jointid.app.backbones import backbones_from_results, preload_model_backbone
 from jointid.app.workflow import identify_campaign
 from jointid.cli import main
 from jointid.identify.backbone import model_backbone

@@ -29,12 +29,12 @@ channels = {{ accel = "Signal[0]" }}
 file = "Sine_{f}Hz/TimeShaker.mat"
 channels = {{ force = "Time_Shaker__X" }}
 """)
-    lines.append(f"""
+    lines.append("""
 [[record]]
 frequency_hz = 16.0
 [[record.source]]
 file = "Sine_16Hz/TimeShaker.mat"
-channels = {{ force = "Time_Shaker__X" }}
+channels = { force = "Time_Shaker__X" }
 """)
     desc = tmp_path / "import.toml"
     desc.write_text("".join(lines))

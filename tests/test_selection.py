@@ -145,14 +145,19 @@ def test_selection_input_errors():
         select_model(sigs, lev, ["q + q^7 + q'"])
 
 
+def _three_level_campaign(tmp_path, seed):
+    """The seed example at force levels 0.5, 1 and 2, five frequencies each, 0.5 % noise."""
+    cfg = paper_config(n_frequencies=5, fs=2000.0, periods=20, noise=0.005, seed=seed, write_frequency=True,
+                       n_harmonics=9)
+    cfg["excitation"]["force_levels"] = [0.5, 1.0, 2.0]
+    return simulate_campaign(load_simulation_config(cfg), tmp_path / "campaign")
+
+
 def test_identify_terms_auto_writes_selection_and_adequacy(tmp_path):
     """identify_campaign(terms='auto') and the CLI: the cubic is selected, results.json has both keys."""
     from jointid.cli import main
 
-    cfg = paper_config(n_frequencies=5, fs=2000.0, periods=20, noise=0.005, seed=3, write_frequency=True,
-                       n_harmonics=9)
-    cfg["excitation"]["force_levels"] = [0.5, 1.0, 2.0]
-    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "campaign")
+    camp = _three_level_campaign(tmp_path, seed=3)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = identify_campaign(camp, terms="auto", repredict=False)
@@ -209,10 +214,7 @@ def test_silverbox_multilevel_selection():
 
 def test_identify_auto_repredicts_with_the_selected_model(tmp_path):
     """terms='auto': each group's FRF is re-predicted with its preload's selected model (terms and laws)."""
-    cfg = paper_config(n_frequencies=5, fs=2000.0, periods=20, noise=0.005, seed=4, write_frequency=True,
-                       n_harmonics=9)
-    cfg["excitation"]["force_levels"] = [0.5, 1.0, 2.0]
-    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "campaign")
+    camp = _three_level_campaign(tmp_path, seed=4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = identify_campaign(camp, terms="auto")

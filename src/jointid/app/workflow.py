@@ -26,7 +26,7 @@ from ..identify.laws import (
     fit_power_law,
     model_power_law,
 )
-from ..identify.model import PreloadForceStateMapping, PreloadModel
+from ..identify.model import PreloadForceStateMapping
 from ..identify.uncertainty import LowRankCovariance, ci95
 from ..identify.terms import library
 from ..io.campaign import Campaign, load_campaign

@@ -25,7 +25,7 @@ theorem gives ``d q_max = sign(q(t*)) B_q(t*) d alpha``.  The score covariance i
 
 and the covariance of the estimate the sandwich ``M^-1 V M^-1`` with ``M = X^T X``.
 
-:func:`record_scores` makes one streamed pass over a record and keeps what any model on
+:func:`record_pass` makes one streamed pass over a record and keeps what any model on
 that record's terms needs (``X^T B`` and the term-wise tensors of ``h_q``, ``h_v``), so
 the per-record fit, the pooled group fit and the preload model all evaluate their
 covariances without reading the samples again (:meth:`RecordScores.covariance`).
@@ -45,7 +45,6 @@ from .regression import reduce_blocks
 __all__ = [
     "RecordScores",
     "FrequencySums",
-    "record_scores",
     "record_pass",
     "PooledCovariance",
     "pooled_covariance",
@@ -433,11 +432,6 @@ def record_pass(lib, signals: StateSignals, filtered=True, inertia=False):
         bool(filtered or inertia), coef_F, bool(inertia), float(var_w), omega_sums=freq,
     )
     return R, scores
-
-
-def record_scores(lib, signals: StateSignals, filtered=True, inertia=False) -> RecordScores:
-    """The noise-model sums of one record (:class:`RecordScores`), see :func:`record_pass`."""
-    return record_pass(lib, signals, filtered, inertia)[1]
 
 
 @dataclass(frozen=True)
