@@ -1679,8 +1679,12 @@ def _assemble(problem, pts, folds, method, stability):
 # ----------------------------------------------------------------------------------------
 
 
-#: Predictor error (relative) up to which frequencies are solved together in a sweep.
-BATCH_GUESS = 1e-2
+#: Predictor error (relative) up to which frequencies are solved together in a sweep: four
+#: full Newton steps take such a start below the tolerance (5e-2 -> 2.5e-3 -> 6e-6 -> 4e-11 ->
+#: ...); a point that does not converge, or lands off the branch, is solved alone.  On the
+#: tests' sweeps the batched solutions differ from the point-by-point ones by at most 8e-11
+#: of the largest coefficient, as with 1e-2 (the Newton tolerance's footprint).
+BATCH_GUESS = 5e-2
 #: Solutions the sweep's predictor extrapolates through (polynomial of degree HISTORY - 1).
 HISTORY = 4
 #: Longest batch of a sweep.
