@@ -311,6 +311,9 @@ class _Problem:
         self.laws = tuple((self.lib.index(name), tuple(float(c) for c in poly)) for name, poly in poly_laws.items())
         self.law_der = tuple((j, tuple(float(c) for c in d)) for j, d in self.law_der)
         self.E_ED = np.vstack([self.E, self.ED])  # P diag(c) ED for a constant c (viscous damping)
+        # terms whose coefficient is zero at every amplitude (no law, zero value): skipped
+        with_law = {j for j, _ in self.laws} | {j for j, _ in self.law_objects}
+        self.zero_terms = frozenset(j for j in range(len(self.lib)) if j not in with_law and self.theta0[j] == 0.0)
         self._last_failure = ""
 
     # -- small helpers ---------------------------------------------------------------
@@ -385,8 +388,10 @@ class _Problem:
         if np.ndim(theta) != 2:
             gq, gv = float(gq), float(gv)
         for j, dq, dv, stiffness in self.nl_terms:
+            if j in self.zero_terms:
+                continue
             c = coef(j)
-            if not np.any(c != 0.0):
+            if np.ndim(c) == 0 and c == 0.0:
                 continue
             if dq is not None and (dv is not None or stiffness):
                 gq = gq + c * dq(q, v)
@@ -591,8 +596,8 @@ class _Problem:
         v = w * dv
         h = None
         for j, func, _, _ in self.fast_terms:
-            c = th[:, j : j + 1]
-            if np.any(c != 0.0):
+            if j not in self.zero_terms:
+                c = th[:, j : j + 1]
                 h = c * func(q, v) if h is None else h + c * func(q, v)
         if h is None:
             h = np.zeros_like(q)
