@@ -934,7 +934,7 @@ class _Problem:
         Phi = _matmul2(E, Mk)[:, 0]
         return Phi, np.exp(4.0 * np.pi * a[:, 0])  # Liouville: exp(-integral of h_v over a period)
 
-    def floquet_batch(self, coefs, omegas, thetas, chunk=256):
+    def floquet_batch(self, coefs, omegas, thetas, chunk=1024):
         """Floquet exponents of many steady states from their monodromy matrices.
 
         A single degree of freedom perturbed about its periodic orbit obeys
