@@ -1643,7 +1643,6 @@ def _assemble(problem, pts, folds, method, stability):
         coefs[i, problem.active] = z[:nx]
         if problem.closure:
             qmax[i] = z[nx]
-            theta[i] = problem.model.coefficients_at(z[nx])
         else:
             if ev.get("peak") is not None:
                 qmax[i] = ev["peak"][0]
@@ -1654,6 +1653,8 @@ def _assemble(problem, pts, folds, method, stability):
         its[i] = it
     if missing:  # q_max of all the points at once
         qmax[missing] = problem.peak_batch(coefs[missing][:, problem.active])[0]
+    if problem.closure:  # the laws at every point's amplitude at once
+        theta[:] = problem._thetas(qmax)
     stable = floquet = None
     if stability:
         floquet = problem.floquet_batch(coefs, omega, theta)
