@@ -1727,12 +1727,12 @@ def _sweep(problem, omegas, tol):
         if k >= 4:
             ws = np.array(omegas[i : i + k])
             Hz = np.array(hist_z)
-            Z0 = _extrapolate_many(np.broadcast_to(hist_w, (k, nh)), Hz[None], ws)
+            Z0 = _extrapolate(np.broadcast_to(hist_w, (k, nh)), Hz[None], ws)
             Z, err, its, ok, peaks = problem.newton_batch(Z0, ws, tol)
             # each point's one-step predictor from the points before it (history, then batch)
             allw, allz = np.concatenate([hist_w, ws]), np.concatenate([Hz, Z])
             win = np.arange(k)[:, None] + np.arange(nh)
-            d = Z - _extrapolate_many(allw[win], allz[win], ws)
+            d = Z - _extrapolate(allw[win], allz[win], ws)
             dist = np.sqrt(np.einsum("ij,ij->i", d, d)) / np.maximum(np.sqrt(np.einsum("ij,ij->i", Z, Z)), _TINY)
             bad = ~ok | ~(dist <= SAME_BRANCH)
             taken = int(np.argmax(bad)) if bad.any() else k
@@ -1750,7 +1750,7 @@ def _sweep(problem, omegas, tol):
             z, ev, it = problem.fresh(w, tol)
             jumped = False
         else:
-            guess = _extrapolate(hist_w, hist_z, w)
+            guess = _extrapolate(np.array([hist_w]), np.array(hist_z)[None], np.array([w]))[0]
             jumped = False
             try:
                 z, ev, it = problem.newton(guess, w, tol)
@@ -1771,9 +1771,10 @@ def _sweep(problem, omegas, tol):
     return pts
 
 
-def _extrapolate_many(wh, zh, w):
-    """:func:`_extrapolate` of many points at once: nodes ``wh`` ``(K, n)``, solutions ``zh``
-    ``(K, n, m)`` (or one set broadcast), targets ``w`` ``(K,)``; repeated nodes give the last."""
+def _extrapolate(wh, zh, w):
+    """Lagrange extrapolation to many frequencies at once: nodes ``wh`` ``(K, n)``, solutions
+    ``zh`` ``(K, n, m)`` (or one set broadcast), targets ``w`` ``(K,)``; one node, or repeated
+    nodes, give the last solution."""
     n = wh.shape[1]
     out = np.zeros((w.size, zh.shape[-1]))
     same = np.zeros(w.size, bool)
@@ -1787,21 +1788,6 @@ def _extrapolate_many(wh, zh, w):
             out += li[:, None] * zh[:, i]
     if same.any():
         out[same] = np.broadcast_to(zh[:, -1], out.shape)[same]
-    return out
-
-
-def _extrapolate(ws, zs, w):
-    """Lagrange extrapolation of the solutions ``zs`` at ``ws`` to ``w`` (degree <= 2)."""
-    n = len(ws)
-    if n == 1 or len(set(ws)) < n:
-        return zs[-1]
-    out = np.zeros_like(zs[-1])
-    for i in range(n):
-        li = 1.0
-        for j in range(n):
-            if j != i:
-                li *= (w - ws[j]) / (ws[i] - ws[j])
-        out += li * zs[i]
     return out
 
 
