@@ -321,13 +321,11 @@ def _with_selected_model(result: CampaignResult, repredict: bool) -> CampaignRes
     """``result`` with each preload's selected model attached (results.json ``selection``) and,
     with ``repredict``, its groups' FRFs and loops re-predicted with that model."""
     from .model_checks import campaign_selection
-    from .reprediction import loop_errors, repredict_campaign
+    from .reprediction import with_repredictions
 
     selections, errors = campaign_selection(result)
     result = replace(result, selections=selections, selection_errors=errors)
-    if repredict:
-        result = replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
-    return result
+    return with_repredictions(result) if repredict else result
 
 
 def _reprediction(pr_camp: RigCampaign, result: CampaignResult, structure: Structure, force_level, n_points,

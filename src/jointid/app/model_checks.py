@@ -136,9 +136,9 @@ def identify_auto(campaign, settings):
     adequacy, adequacy_errors = campaign_adequacy(result)
     result = replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
     if settings.repredict:  # with the selected models (jointid.app.reprediction.identified_model)
-        from .reprediction import loop_errors, repredict_campaign
+        from .reprediction import with_repredictions
 
-        result = replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
+        result = with_repredictions(result)
     return result
 
 

@@ -35,7 +35,8 @@ from ..errors import JointidError, JointidWarning
 from ..rig.rig import parabolic_peak, refine_peak
 from ..signal.harmonics import fit_harmonics
 
-__all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "group_loops", "loop_errors"]
+__all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "with_repredictions",
+           "group_loops", "loop_errors"]
 
 #: Largest interval beside a computed peak, relative to its frequency: a re-predicted or exact
 #: peak is sampled this finely before the parabola through its three largest samples.  The
@@ -395,6 +396,12 @@ def repredict_campaign(result, **kw) -> tuple:
         if r is not None:
             out.append(r)
     return tuple(out)
+
+
+def with_repredictions(result):
+    """``result`` with every group's FRF re-predicted (:func:`repredict_campaign`) and its
+    loops compared (:func:`loop_errors`), with the models ``result`` holds now."""
+    return replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
 
 
 def group_loops(result, group):

@@ -481,9 +481,9 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         if a is not None and a.adequate is False:
             warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=3)
     if settings.repredict:
-        from .reprediction import loop_errors, repredict_campaign
+        from .reprediction import with_repredictions
 
-        result = replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
+        result = with_repredictions(result)
     from .backbones import campaign_backbones
 
     return replace(result, backbones=campaign_backbones(result, campaign))
