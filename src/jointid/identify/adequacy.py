@@ -37,6 +37,7 @@ from ..conventions import harmonic_index
 from ..errors import IdentificationError
 from .fsm import record_whitenings, split_terms
 from .model import OUT_OF_BAND_LIMIT, in_band_rows, out_of_band_fraction, score_covariance
+from .powerlaw import is_power
 from .terms import library
 from .uncertainty import sandwich, scaled_inverse
 
@@ -465,24 +466,28 @@ def in_band_level_fits(fits, levels, names=None, weighting="noise") -> tuple:
     return tuple(out_lv), tuple(all_names[j] for j in sel), out_th, out_cov
 
 
-def _level_models(model, fits, signals_list, levels, names, weighting, in_band):
-    """The preload model's structure fitted to each force level alone: ``(levels, names, values, covariances)``."""
+def _refit(model, signals_list, fits, weighting, in_band):
+    """``model``'s terms and laws fitted again to ``signals_list`` (warnings silenced)."""
     import warnings
 
     from ..errors import JointidWarning
     from .model import PreloadForceStateMapping
 
     laws = {c: L for c, L in zip(model.coefficient_names, model.law_orders) if L != 0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        return PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
+                                        preload=model.preload, in_band=in_band).fit(signals_list, fits=fits).result_
+
+
+def _level_models(model, fits, signals_list, levels, names, weighting, in_band):
+    """The preload model's structure fitted to each force level alone: ``(levels, names, values, covariances)``."""
     sel = [model.parameter_names.index(n) for n in names]
     out_lv, out_th, out_cov = [], [], []
     for lv in dict.fromkeys(levels):
         idx = [i for i, x in enumerate(levels) if x == lv]
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", JointidWarning)
-                m = PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
-                                             in_band=in_band).fit([signals_list[i] for i in idx],
-                                                                  fits=[fits[i] for i in idx]).result_
+            m = _refit(model, [signals_list[i] for i in idx], [fits[i] for i in idx], weighting, in_band)
         except IdentificationError:
             continue  # too few records for the laws at this level
         out_lv.append(lv)
@@ -493,22 +498,8 @@ def _level_models(model, fits, signals_list, levels, names, weighting, in_band):
 
 def _in_band_model(model, fits, signals_list, weighting, truncated):
     """The preload model within the fitted harmonics, and a note on what a fit over all harmonics changes."""
-    import warnings
-
-    from ..errors import JointidWarning
-    from .model import PreloadForceStateMapping
-
-    laws = {c: L for c, L in zip(model.coefficient_names, model.law_orders) if L != 0}
-
-    def fit(in_band):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", JointidWarning)
-            return PreloadForceStateMapping(list(model.terms), amplitude_laws=laws, weighting=weighting,
-                                            preload=model.preload, in_band=in_band).fit(signals_list,
-                                                                                        fits=fits).result_
-
-    band = model if model.in_band else fit(True)
-    full = model if not model.in_band else fit(False)
+    band = model if model.in_band else _refit(model, signals_list, fits, weighting, True)
+    full = model if not model.in_band else _refit(model, signals_list, fits, weighting, False)
     H = fits[0].scores.phi_b.shape[1] // 2
     what = ", ".join(f"{t} {100 * x:.2g} %" for t, x in truncated.items())
     note = (f"terms with energy beyond the {H} fitted harmonics ({what}): the records are compared with the model "
@@ -544,20 +535,21 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
         truncated = {t: float(x) for t, x in zip(model.terms, frac) if x > OUT_OF_BAND_LIMIT}
     stiffness_law = model is not None and any(
         L != 0 for t, L in zip(library(list(model.terms)), model.law_orders) if t.kind != "damping")
+    per_level = None  # (levels, names, values, covariances) when the levels' pooled fits do not serve
     if stiffness_law and constant and fits:
         # a level's pooled fit has no law on the stiffness, which would then leak into the constant
         # parameters: each level gets the preload model itself (its laws, fitted to the level alone)
-        lv, names, th, covs = _level_models(model, fits, signals_list, levels, constant, weighting, bool(truncated))
-        eq, chi2, dof, p = (_equality(lv, names, th, covs) if len(lv) >= 2 and names
-                            else ((), float("nan"), 0, float("nan")))
+        per_level = _level_models(model, fits, signals_list, levels, constant, weighting, bool(truncated))
     elif truncated:
-        lv, names, th, covs = in_band_level_fits(fits, levels, constant, weighting)
-        eq, chi2, dof, p = (_equality(lv, names, th, covs) if len(lv) >= 2 and names
-                            else ((), float("nan"), 0, float("nan")))
-    else:
+        per_level = in_band_level_fits(fits, levels, constant, weighting)
+    if per_level is None:
         eq, chi2, dof, p = level_equality(level_fits, constant)
+    elif len(per_level[0]) >= 2 and per_level[1]:
+        eq, chi2, dof, p = _equality(*per_level)
+    else:
+        eq, chi2, dof, p = (), float("nan"), 0, float("nan")
     terms = tuple(model.terms) if model is not None else tuple(level_fits[0][1].terms) if level_fits else ()
-    power = model is not None and any(isinstance(L, str) for L in model.law_orders)
+    power = model is not None and any(is_power(L) for L in model.law_orders)
     name = model_name(terms, power) if terms else "?"
     msgs, adequate = [], True
     differ = [e for e in eq if e.differs]
