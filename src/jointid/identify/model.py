@@ -186,10 +186,12 @@ def fit_laws(term_rows, rhs, q_max, orders, n_samples):
     power_cols = [(k, int(np.cumsum([law_size(L) for L in lin_orders])[k]) - 1)
                   for k, L in enumerate(orders) if is_power(L)]
 
+    bases = [_expansion(lin_orders, q)[0] for q in q_max]  # the same at every trial exponent
+
     def design(exps):
         out = []
-        for R, q in zip(term_rows, q_max):
-            E = _expansion(lin_orders, q)[0]
+        for R, q, base in zip(term_rows, q_max, bases):
+            E = base.copy()
             for (k, j), c in zip(power_cols, exps):
                 E[k, j] = abs(q) ** c
             out.append(R @ E)
