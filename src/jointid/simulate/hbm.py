@@ -870,8 +870,23 @@ class _Problem:
             hv += cj[:, None] * gv
         return hq, hv
 
+    #: Elements per temporary array of :meth:`_monodromy` (rows x Gauss nodes): larger arrays
+    #: are computed in row blocks, which keeps every temporary below the size (128 KiB) from
+    #: which the C allocator maps fresh pages for each one, at twice the cost per element.
+    MONODROMY_BLOCK = 16384
+
     def _monodromy(self, c, w, th, steps):
         """Monodromy matrices ``(K, 2, 2)`` and Liouville determinants of ``K`` steady states."""
+        K = c.shape[0]
+        blocks = -(-K * 2 * steps // self.MONODROMY_BLOCK)
+        if blocks <= 1:
+            return self._monodromy_block(c, w, th, steps)
+        rows = -(-K // blocks)
+        parts = [self._monodromy_block(c[s:s + rows], w[s:s + rows], th[s:s + rows], steps)
+                 for s in range(0, c.shape[0], rows)]
+        return np.concatenate([m for m, _ in parts]), np.concatenate([d for _, d in parts])
+
+    def _monodromy_block(self, c, w, th, steps):
         EgT, EDgT = self._gauss_basis(steps)
         nodes = self._gauss_nodes(steps)[None, :]
         h = 2.0 * np.pi / steps
@@ -896,10 +911,9 @@ class _Problem:
         rs = np.where(tiny, 1.0, rt)
 
         def cos_sin(s):
-            x = rs * s
-            C = np.where(hyp, np.cosh(x), np.cos(x))
-            S = np.where(tiny, s, np.where(hyp, np.sinh(x), np.sin(x)) / rs)
-            return C, S
+            C, S = _cos_sin(rs * s, hyp)
+            S /= rs
+            return C, (np.where(tiny, s, S) if tiny.any() else S)
 
         C, S = cos_sin(nodes)
         ep = np.exp(a * nodes)
@@ -1096,6 +1110,21 @@ def _matmul2(A, B):
     return C
 
 
+def _cos_sin(x, hyp):
+    """``(cosh x, sinh x)`` where ``hyp``, ``(cos x, sin x)`` elsewhere (``hyp`` broadcast
+    against ``x``); each function is evaluated only where it is kept."""
+    C = np.empty(x.shape)
+    S = np.empty(x.shape)
+    for is_hyp, fc, fs in ((hyp, np.cosh, np.sinh), (~hyp, np.cos, np.sin)):
+        if is_hyp.all():
+            fc(x, out=C)
+            fs(x, out=S)
+        elif is_hyp.any():
+            fc(x, out=C, where=is_hyp)
+            fs(x, out=S, where=is_hyp)
+    return C, S
+
+
 def _expm2(o00, o01, o10, o11):
     """``exp`` of stacks of 2x2 matrices given by their entries (closed form)."""
     half = 0.5 * (o00 + o11)
@@ -1104,8 +1133,11 @@ def _expm2(o00, o01, o10, o11):
     r = np.sqrt(np.abs(delta))
     small = r < 1e-4
     rr = np.where(small, 1.0, r)
-    C = np.where(small, 1.0 + 0.5 * delta, np.where(delta >= 0, np.cosh(rr), np.cos(rr)))
-    S = np.where(small, 1.0 + delta / 6.0, np.where(delta >= 0, np.sinh(rr), np.sin(rr)) / rr)
+    C, S = _cos_sin(rr, delta >= 0)
+    S /= rr
+    if small.any():
+        C = np.where(small, 1.0 + 0.5 * delta, C)
+        S = np.where(small, 1.0 + delta / 6.0, S)
     e = np.exp(half)
     out = np.empty(o00.shape + (2, 2))
     out[..., 0, 0] = e * (C + S * p)
