@@ -268,6 +268,8 @@ class _Problem:
         self.b_idx = pos[(full_pos % 2 == 0) & (full_pos > 0)]
         self.const_idx = pos[full_pos == 0]
         self.kh = self.k[self.a_idx].astype(float)  # harmonic number of each (a, b) pair
+        # rows of dq/dtau, d2q/dtau2 and q against c_k e^(i k tau), c_k = a_k - i b_k (peak_batch)
+        self.peak_rows = np.array([1j * self.kh, -(self.kh * self.kh), np.ones_like(self.kh)])
         M = max(2 * N, 256)
         self.E_dense = np.ascontiguousarray(_basis_at(2 * np.pi * np.arange(M) / M, H)[:, self.active])
         fvec = np.zeros(self.active.size)
@@ -308,6 +310,7 @@ class _Problem:
         self.PED = self.P @ self.ED
         self.kq = abs(float(self.theta0[self.i_q])) if self.i_q is not None else 0.0
         self.D_active = np.ascontiguousarray(D[np.ix_(self.active, self.active)])
+        self.eye = np.eye(self.active.size)
         self.laws = tuple((self.lib.index(name), tuple(float(c) for c in poly)) for name, poly in poly_laws.items())
         self.law_der = tuple((j, tuple(float(c) for c in d)) for j, d in self.law_der)
         self.E_ED = np.vstack([self.E, self.ED])  # P diag(c) ED for a constant c (viscous damping)
@@ -537,47 +540,42 @@ class _Problem:
         return th
 
     def peak_batch(self, X):
-        """:func:`_peak` for the rows of ``X``: ``(values, taus, signs)``."""
+        """:func:`_peak` for the rows of ``X``: ``(values, taus, signs)``.
+
+        With ``c_k = a_k - i b_k`` the series is ``q = Re sum c_k e^(i k tau)`` (plus the
+        constant), so one complex exponential gives ``dq/dtau``, ``d2q/dtau2`` and ``q``
+        together.  All rows take Newton steps until every step is below ``1e-8``; the
+        last step is not taken but its effect on the value is added by Taylor,
+        ``q(tau - s) = q - g s / 2`` with ``s = g / q''`` (error ``~ s^3``, far below
+        round-off).
+        """
         K = X.shape[0]
         qd = X @ self.E_dense.T
-        aq = np.abs(qd)
         M = qd.shape[1]
         h = 2.0 * np.pi / M
-        i = np.argmax(aq, axis=1)
+        aq = np.abs(qd)
+        i = aq.argmax(axis=1)
         rows = np.arange(K)
         y0, y1, y2 = aq[rows, i - 1], aq[rows, i], aq[rows, (i + 1) % M]
         den = y0 - 2.0 * y1 + y2
         tau0 = i * h
         tau = tau0 + np.divide(0.5 * h * (y0 - y2), den, out=np.zeros(K), where=den < 0.0)
-        a, b = X[:, self.a_idx], X[:, self.b_idx]
-        kh = self.kh
-        ka, kb = kh * a, kh * b
-        # rows of (dq/dtau, d2q/dtau2) against cos and sin of the harmonics
-        Mc = np.empty((K, 2, kh.size))
-        Ms = np.empty((K, 2, kh.size))
-        Mc[:, 0], Mc[:, 1] = kb, -(kh * ka)
-        Ms[:, 0], Ms[:, 1] = -ka, -(kh * kb)
-        run = np.ones(K, bool)
-        back = np.zeros(K, bool)
-        for _ in range(8):
-            ph = np.multiply.outer(tau, kh)
-            gd = (Mc @ np.cos(ph)[:, :, None] + Ms @ np.sin(ph)[:, :, None])[:, :, 0]
-            g, d2 = gd[:, 0], gd[:, 1]
-            run &= d2 != 0.0
-            step = np.divide(g, d2, out=np.zeros(K), where=run)
-            tau = tau - step
-            out = run & (np.abs(tau - tau0) > h)  # left the neighbourhood of the grid maximum
-            back |= out
-            run &= ~out & ~(np.abs(step) < 1e-8)
-            if not run.any():
+        C = (X[:, self.a_idx] - 1j * X[:, self.b_idx])[:, None, :] * self.peak_rows
+        ikh = self.peak_rows[0]
+        back = np.zeros(K, bool)  # left the neighbourhood of the grid maximum
+        for it in range(8):
+            g, d2, q = (C @ np.exp(np.multiply.outer(tau, ikh))[:, :, None])[:, :, 0].real.T
+            step = np.divide(g, d2, out=np.zeros(K), where=(d2 != 0.0) & ~back)
+            if it == 7 or np.abs(step).max() < 1e-8:
                 break
-        tau = np.where(back, tau0, tau)
-        ph = np.multiply.outer(tau, kh)
-        q_tau = np.einsum("ij,ij->i", a, np.cos(ph)) + np.einsum("ij,ij->i", b, np.sin(ph))
-        q_tau = q_tau + X[:, self.const_idx].sum(axis=1)
-        worse = np.abs(q_tau) < y1  # never worse than the grid (guards a stray Newton)
-        tau = np.where(worse, tau0, tau)
-        q_tau = np.where(worse, qd[rows, i], q_tau)
+            tau = tau - step
+            out = np.abs(tau - tau0) > h
+            back |= out
+            tau[out] = tau0[out]
+        q_tau = q - 0.5 * g * step + X[:, self.const_idx].sum(axis=1)
+        grid = back | (np.abs(q_tau) < y1)  # never worse than the grid (guards a stray Newton)
+        tau = np.where(grid, tau0, tau - step)
+        q_tau = np.where(grid, qd[rows, i], q_tau)
         return np.abs(q_tau), tau, np.where(q_tau >= 0, 1.0, -1.0)
 
     def evaluate_batch(self, Z, W, jacobian=False):
@@ -627,25 +625,26 @@ class _Problem:
     def _jacobian_batch(self, Z, W, q, v, th, peak):
         nx, K = self.active.size, Z.shape[0]
         gq, gv = self._derivatives(q, v, th)
-        gq = np.broadcast_to(gq, (K, gq.shape[1]))
-        gv = np.broadcast_to(gv, (K, gv.shape[1]))
+        if gq.shape[0] != K:
+            gq = np.broadcast_to(gq, (K, gq.shape[1]))
+        if gv.shape[0] != K:
+            gv = np.broadcast_to(gv, (K, gv.shape[1]))
         J = np.zeros((K, self.m, self.m))
-        eye = np.eye(nx)
         if gq.shape[1] > 1:
             J[:, :nx, :nx] = self._product(gq)
         else:
-            J[:, :nx, :nx] = gq[:, :, None] * eye
+            J[:, :nx, :nx] = gq[:, :, None] * self.eye
         if gv.shape[1] > 1:
             J[:, :nx, :nx] += self._product(W[:, None] * gv) @ self.D_active
         else:
             J[:, :nx, :nx] += (W[:, None] * gv)[:, :, None] * self.PED
-        J[:, np.arange(nx), np.arange(nx)] -= (W * W)[:, None] * self.k2
+        J.reshape(K, -1)[:, : nx * (self.m + 1) : self.m + 1] -= (W * W)[:, None] * self.k2  # the diagonal
         if self.closure:
             qm = Z[:, nx]
             dh = np.zeros_like(q)
             for j, dpoly in self.law_der:
                 d = _horner(dpoly, qm)
-                if np.any(d != 0.0):
+                if d.any():
                     dh += d[:, None] * self.lib.terms[j].func(q, v)
             for j, law in self.law_objects:
                 dh += law.derivative(qm)[:, None] * self.lib.terms[j].func(q, v)
@@ -675,7 +674,8 @@ class _Problem:
         its = np.zeros(K, int)
         failed = np.zeros(K, bool)
         act = np.flatnonzero(err > tol)
-        J, R = self._jacobian_rows(ev, Z, W, act), ev["R"][act]
+        if act.size:
+            J, R = self._jacobian_rows(ev, Z, W, act), ev["R"][act]
         while act.size:
             if its[act[0]] >= max_iter:
                 failed[act] = True
@@ -699,8 +699,9 @@ class _Problem:
                     p[sel] = pt[ok]
             more = err[sel] > tol
             act = sel[more]
-            rows = np.flatnonzero(ok)[more]
-            J, R = self._jacobian_rows(et, trial, Wa, rows), et["R"][rows]
+            if act.size:
+                rows = np.flatnonzero(ok)[more]
+                J, R = self._jacobian_rows(et, trial, Wa, rows), et["R"][rows]
         return Z, err, its, ~failed & (err <= tol), peaks
 
     def _fail_msg(self, omega, err, it, tol, why):
@@ -1808,16 +1809,13 @@ def _extrapolate(wh, zh, w):
     ``zh`` ``(K, n, m)`` (or one set broadcast), targets ``w`` ``(K,)``; one node, or repeated
     nodes, give the last solution."""
     n = wh.shape[1]
-    out = np.zeros((w.size, zh.shape[-1]))
-    same = np.zeros(w.size, bool)
+    eye = np.eye(n, dtype=bool)
+    den = wh[:, :, None] - wh[:, None, :]  # (K, i, j): w_i - w_j
+    same = np.any((den == 0.0) & ~eye, axis=(1, 2))
     with np.errstate(divide="ignore", invalid="ignore"):
-        for i in range(n):
-            li = np.ones(w.size)
-            for j in range(n):
-                if j != i:
-                    li = li * ((w - wh[:, j]) / (wh[:, i] - wh[:, j]))
-                    same |= wh[:, i] == wh[:, j]
-            out += li[:, None] * zh[:, i]
+        # weight i: product over j != i of (w - w_j) / (w_i - w_j)
+        li = np.where(eye, 1.0, (w[:, None] - wh)[:, None, :] / den).prod(axis=2)
+    out = (li[:, None, :] @ zh)[:, 0]
     if same.any():
         out[same] = np.broadcast_to(zh[:, -1], out.shape)[same]
     return out
