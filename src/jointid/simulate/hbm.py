@@ -1864,14 +1864,23 @@ class _Arclength:
     def join(self, z, w):
         return np.append(z / self.zs, (w - self.w0) / self.W)
 
-    def eval(self, y):
+    def residual(self, y):
+        """Scaled residual ``G(y)`` and the evaluation behind it."""
         z, w = self.split(y)
-        ev = self.p.evaluate(z, w, jacobian=True, domega=True)
-        G = self.rs * ev["R"]
+        ev = self.p.evaluate(z, w, jacobian=False)
+        return self.rs * ev["R"], ev
+
+    def derivative(self, ev):
+        """``dG/dy`` at an evaluation of :meth:`residual`."""
+        self.p.jacobian(ev, domega=True)
         Gy = np.empty((self.p.m, self.p.m + 1))
         Gy[:, :-1] = (self.rs[:, None] * ev["J"]) * self.zs
         Gy[:, -1] = self.rs * ev["Jw"] * self.W
-        return G, Gy, ev
+        return Gy
+
+    def eval(self, y):
+        G, ev = self.residual(y)
+        return G, self.derivative(ev), ev
 
     @staticmethod
     def tangent(Gy, t_prev):
@@ -1883,15 +1892,21 @@ class _Arclength:
         t = _solve(A, rhs)
         return t / math.sqrt(float(t @ t))
 
-    def correct(self, yp, t, max_iter=10):
-        """Newton on ``[G(y); t.(y - yp)] = 0``; returns ``(y, Gy, ev, its)`` or None."""
+    def correct(self, yp, t, max_iter=10, exact=False):
+        """Newton on ``[G(y); t.(y - yp)] = 0``; returns ``(y, Gy, ev, its)`` or None.
+
+        ``Gy`` (for the tangent) is the derivative at the last Newton iterate before the
+        solution, one converged step away (a relative change of about the square root of
+        the tolerance), unless ``exact``: then it is evaluated at the solution.
+        """
         y = yp.copy()
         for it in range(max_iter + 1):
-            G, Gy, ev = self.eval(y)
+            G, ev = self.residual(y)
             if ev["err"] <= self.tol and it > 0:
-                return y, Gy, ev, it
+                return y, (self.derivative(ev) if exact else Gy), ev, it
             if not np.isfinite(ev["err"]):
                 return None
+            Gy = self.derivative(ev)
             A = np.empty((Gy.shape[0] + 1, Gy.shape[1]))
             A[:-1] = Gy
             A[-1] = t
@@ -1904,8 +1919,8 @@ class _Arclength:
                 return None
             y = y + dy
             if ev["err"] <= self.tol:
-                G, Gy, ev = self.eval(y)
-                return y, Gy, ev, it + 1
+                G, ev = self.residual(y)
+                return y, (self.derivative(ev) if exact else Gy), ev, it + 1
         return None
 
 
@@ -2030,7 +2045,7 @@ def _locate_fold(arc, y, t, ds, t_new):
     side = 0
     for _ in range(30):
         c = b - fb * (b - a) / (fb - fa)
-        out = arc.correct(y + c * t, t)
+        out = arc.correct(y + c * t, t, exact=True)
         if out is None:
             return best
         yc, Gyc, evc, its = out
