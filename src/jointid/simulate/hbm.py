@@ -855,23 +855,6 @@ class _Problem:
     MONODROMY_STEPS = 32
     #: Change of the monodromy matrix between step counts below which it is accepted.
     MONODROMY_TOL = 1e-6
-
-    def _h_derivatives(self, q, v, th):
-        """``(dh/dq, dh/dv)`` of the restoring force at states ``(K, n)`` for coefficients ``th`` ``(K, p)``."""
-        hq = np.zeros_like(q)
-        hv = np.zeros_like(q)
-        for j, _, dq, dv in self.fast_terms:
-            cj = th[:, j]
-            if not np.any(cj != 0.0):
-                continue
-            if dq is not None and dv is not None:
-                gq, gv = dq(q, v), dv(q, v)
-            else:
-                gq, gv = self.lib.terms[j].derivatives(q, v)
-            hq += cj[:, None] * gq
-            hv += cj[:, None] * gv
-        return hq, hv
-
     #: Elements per temporary array of :meth:`_monodromy` (rows x Gauss nodes): larger arrays
     #: are computed in row blocks, which keeps every temporary below the size (128 KiB) from
     #: which the C allocator maps fresh pages for each one, at twice the cost per element.
@@ -895,7 +878,7 @@ class _Problem:
         c3 = math.sqrt(3.0) / 12.0 * h * h
         q = c @ EgT
         v = w[:, None] * (c @ EDgT)
-        hq, hv = self._h_derivatives(q, v, th)
+        hq, hv = self._derivatives(q, v, th)  # (K, n), or (K, 1) where constant in time
         # y' = A y in the phase tau = omega t, A = [[0, 1], [-hq, -hv]] / omega = A0 + A1(tau),
         # A0 the mean (Gauss nodes integrate the trigonometric polynomials exactly)
         iw = (1.0 / w)[:, None]
@@ -918,25 +901,29 @@ class _Problem:
             return C, (np.where(tiny, s, S) if tiny.any() else S)
 
         C, S = cos_sin(nodes)
-        ep = np.exp(a * nodes)
-        em = 1.0 / ep
-        # frame remainder at each node: exp(-A0 s) A1 exp(A0 s) = u w^T
-        u0 = em * (-S * p01)
-        u1 = em * (C + S * p00)
-        w0 = ep * (rq * (C + S * p00) + rv * S * p10)
-        w1 = ep * (rq * S * p01 + rv * (C - S * p00))
+        # frame remainder at each node: exp(-A0 s) A1 exp(A0 s) = u w^T, with u = e^{-a s} (u0, u1)
+        # and w = e^{a s} (w0, w1); the exponentials cancel in every term of the Magnus step
+        # below (each pairs a u with a w at the same node, or two such pairs), so they are left out
+        Sp = S * p00
+        u0 = S * (-p01)
+        u1 = C + Sp
+        w0 = rq * u1 + rv * (S * p10)
+        w1 = rv * (C - Sp) - rq * u0
         U1, U2 = u0[:, 0::2], u0[:, 1::2]
         V1, V2 = u1[:, 0::2], u1[:, 1::2]
         X1, X2 = w0[:, 0::2], w0[:, 1::2]
         Y1, Y2 = w1[:, 0::2], w1[:, 1::2]
-        g21 = X2 * U1 + Y2 * V1  # w2 . u1
-        g12 = X1 * U2 + Y1 * V2  # w1 . u2
+        g21 = c3 * (X2 * U1 + Y2 * V1)  # c3 w2 . u1
+        g12 = c3 * (X1 * U2 + Y1 * V2)  # c3 w1 . u2
         hh = 0.5 * h
         # Omega = h/2 (u1 w1 + u2 w2) + sqrt(3) h^2 / 12 (u2 (w2.u1) w1 - u1 (w1.u2) w2)
-        o00 = hh * (U1 * X1 + U2 * X2) + c3 * (g21 * U2 * X1 - g12 * U1 * X2)
-        o01 = hh * (U1 * Y1 + U2 * Y2) + c3 * (g21 * U2 * Y1 - g12 * U1 * Y2)
-        o10 = hh * (V1 * X1 + V2 * X2) + c3 * (g21 * V2 * X1 - g12 * V1 * X2)
-        o11 = hh * (V1 * Y1 + V2 * Y2) + c3 * (g21 * V2 * Y1 - g12 * V1 * Y2)
+        #       = u1 (h/2 w1 - c3 (w1.u2) w2) + u2 (h/2 w2 + c3 (w2.u1) w1) = u1 A + u2 B
+        A0, A1 = hh * X1 - g12 * X2, hh * Y1 - g12 * Y2
+        B0, B1 = hh * X2 + g21 * X1, hh * Y2 + g21 * Y1
+        o00 = U1 * A0 + U2 * B0
+        o01 = U1 * A1 + U2 * B1
+        o10 = V1 * A0 + V2 * B0
+        o11 = V1 * A1 + V2 * B1
         Mk = _expm2(o00, o01, o10, o11)
         while Mk.shape[1] > 1:  # ordered product: later steps on the left
             Mk = _matmul2(Mk[:, 1::2], Mk[:, 0::2])
@@ -1032,7 +1019,7 @@ class _Problem:
             c, w, th = coefs[sl], omegas[sl], thetas[sl]
             q = c @ E.T
             v = w[:, None] * (c @ ED.T)
-            hq, hv = self._h_derivatives(q, v, th)
+            hq, hv = (np.broadcast_to(g, q.shape) for g in self._derivatives(q, v, th))
             L = 2 * self.H + 1
             spec_q = np.fft.rfft(hq, axis=1)[:, :L] * (2.0 / self.N)
             spec_v = np.fft.rfft(hv, axis=1)[:, :L] * (2.0 / self.N)
@@ -1900,6 +1887,7 @@ class _Arclength:
         the tolerance), unless ``exact``: then it is evaluated at the solution.
         """
         y = yp.copy()
+        Gy = None
         for it in range(max_iter + 1):
             G, ev = self.residual(y)
             if ev["err"] <= self.tol and it > 0:
