@@ -216,6 +216,11 @@ def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
     return abs(q_tau), tau, (1.0 if q_tau >= 0 else -1.0)
 
 
+#: Newton step on the peak's phase below which :meth:`_Problem.peak_batch` stops: the value
+#: carried to the step's end by Taylor to third order is then exact to rounding.
+PEAK_STEP = 1e-5
+
+
 # ----------------------------------------------------------------------------------------
 # Problem context: everything that does not change with omega
 # ----------------------------------------------------------------------------------------
@@ -268,8 +273,8 @@ class _Problem:
         self.b_idx = pos[(full_pos % 2 == 0) & (full_pos > 0)]
         self.const_idx = pos[full_pos == 0]
         self.kh = self.k[self.a_idx].astype(float)  # harmonic number of each (a, b) pair
-        # rows of dq/dtau, d2q/dtau2 and q against c_k e^(i k tau), c_k = a_k - i b_k (peak_batch)
-        self.peak_rows = np.array([1j * self.kh, -(self.kh * self.kh), np.ones_like(self.kh)])
+        # rows of dq/dtau, d2q/dtau2, d3q/dtau3 and q against c_k e^(i k tau), c_k = a_k - i b_k (peak_batch)
+        self.peak_rows = np.array([1j * self.kh, -(self.kh**2), -1j * self.kh**3, np.ones_like(self.kh)])
         M = max(2 * N, 256)
         self.E_dense = np.ascontiguousarray(_basis_at(2 * np.pi * np.arange(M) / M, H)[:, self.active])
         fvec = np.zeros(self.active.size)
@@ -544,11 +549,14 @@ class _Problem:
         """:func:`_peak` for the rows of ``X``: ``(values, taus, signs)``.
 
         With ``c_k = a_k - i b_k`` the series is ``q = Re sum c_k e^(i k tau)`` (plus the
-        constant), so one complex exponential gives ``dq/dtau``, ``d2q/dtau2`` and ``q``
-        together.  All rows take Newton steps until every step is below ``1e-8``; the
-        last step is not taken but its effect on the value is added by Taylor,
-        ``q(tau - s) = q - g s / 2`` with ``s = g / q''`` (error ``~ s^3``, far below
-        round-off).
+        constant), so one complex exponential gives ``q`` and its first three derivatives
+        together.  All rows take Newton steps ``s = q' / q''`` until every step is below
+        ``PEAK_STEP``; the last step is not taken but the value is carried to ``tau - s``
+        by Taylor, ``q - q' s + q'' s^2 / 2 - q''' s^3 / 6``.  The maximum lies about
+        ``(q''' / 2 q'') s^2`` from there, where the value differs by ``q''/2`` times its
+        square, and the omitted Taylor term is ``q'''' s^4 / 24``: both below ``1e-17`` of
+        the value up to harmonic 9.  From the grid's parabola the first step is about
+        ``1e-7`` (a nearly sinusoidal response), so one product usually suffices.
         """
         K = X.shape[0]
         qd = X @ self.E_dense.T
@@ -565,15 +573,15 @@ class _Problem:
         ikh = self.peak_rows[0]
         back = np.zeros(K, bool)  # left the neighbourhood of the grid maximum
         for it in range(8):
-            g, d2, q = (C @ np.exp(np.multiply.outer(tau, ikh))[:, :, None])[:, :, 0].real.T
+            g, d2, d3, q = (C @ np.exp(np.multiply.outer(tau, ikh))[:, :, None])[:, :, 0].real.T
             step = np.divide(g, d2, out=np.zeros(K), where=(d2 != 0.0) & ~back)
-            if it == 7 or np.abs(step).max() < 1e-8:
+            if it == 7 or np.abs(step).max() < PEAK_STEP:
                 break
             tau = tau - step
             out = np.abs(tau - tau0) > h
             back |= out
             tau[out] = tau0[out]
-        q_tau = q - 0.5 * g * step + X[:, self.const_idx].sum(axis=1)
+        q_tau = q - step * (g - step * (0.5 * d2 - step * d3 / 6.0)) + X[:, self.const_idx].sum(axis=1)
         grid = back | (np.abs(q_tau) < y1)  # never worse than the grid (guards a stray Newton)
         tau = np.where(grid, tau0, tau - step)
         q_tau = np.where(grid, qd[rows, i], q_tau)
