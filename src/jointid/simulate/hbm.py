@@ -357,11 +357,6 @@ class _Problem:
         row[self.const_idx] = 1.0
         return row
 
-    def scales(self, z, omega):
-        x = z[: self.active.size]
-        xn = math.sqrt(float(x @ x))
-        return max(abs(self.F), (omega * omega + self.kq) * xn, _TINY), max(xn, _TINY)
-
     # -- residual and Jacobian -------------------------------------------------------
 
     def _forces(self, q, v, theta):
@@ -430,11 +425,11 @@ class _Problem:
         if self.closure:
             peak = self.peak(x)
             R[nx] = z[nx] - peak[0]
-        sR, sx = self.scales(z, omega)
+        xn = math.sqrt(float(x @ x))
         r = R[:nx]
-        err = math.sqrt(float(r @ r)) / sR
+        err = math.sqrt(float(r @ r)) / max(abs(self.F), (omega * omega + self.kq) * xn, _TINY)
         if self.closure:
-            err = max(err, abs(R[nx]) / sx)
+            err = max(err, abs(R[nx]) / max(xn, _TINY))
         if not math.isfinite(err):
             err = np.inf
         ev = {"z": z, "omega": omega, "q": q, "v": v, "dv": dv, "theta": theta, "R": R, "err": err,
@@ -1852,9 +1847,11 @@ class _Arclength:
         self.rs[: problem.active.size] = 1.0 / max(abs(problem.F), _TINY)
         if problem.closure:
             self.rs[-1] = 1.0 / zs
+        self.scale_z = (self.rs * zs)[:, None]  # dG/du = rs J zs
+        self.scale_w = self.rs * self.W  # dG/dnu = rs Jw W
 
     def split(self, y):
-        return y[:-1] * self.zs, self.w0 + self.W * y[-1]
+        return y[:-1] * self.zs, self.w0 + self.W * float(y[-1])
 
     def join(self, z, w):
         return np.append(z / self.zs, (w - self.w0) / self.W)
@@ -1869,8 +1866,8 @@ class _Arclength:
         """``dG/dy`` at an evaluation of :meth:`residual`."""
         self.p.jacobian(ev, domega=True)
         Gy = np.empty((self.p.m, self.p.m + 1))
-        Gy[:, :-1] = (self.rs[:, None] * ev["J"]) * self.zs
-        Gy[:, -1] = self.rs * ev["Jw"] * self.W
+        np.multiply(ev["J"], self.scale_z, out=Gy[:, :-1])
+        np.multiply(ev["Jw"], self.scale_w, out=Gy[:, -1])
         return Gy
 
     def eval(self, y):
