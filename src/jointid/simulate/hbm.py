@@ -173,6 +173,12 @@ def _product_gather(n_harmonics: int, idx: tuple):
     return i1, w1, i2, w2
 
 
+#: Newton step on the peak's phase below which the peak search stops: the value carried
+#: to the step's end by Taylor to third order is then exact to rounding (see
+#: :meth:`_Problem.peak_batch`).
+PEAK_STEP = 1e-5
+
+
 def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
     """``max_tau |q(tau)|`` of a harmonic series to machine precision.
 
@@ -180,8 +186,8 @@ def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
     its (cosine, sine) pairs, ``a_idx``/``b_idx``/``const_idx`` the positions of the
     cosine, sine and constant entries and ``E_dense`` the time basis on a dense grid.
     The grid maximum is refined by a parabola through its neighbours, then by Newton
-    on ``dq/dtau = 0`` (quadratic convergence: the value error is the square of the
-    phase error).  Returns ``(value, tau, sign)``.
+    on ``dq/dtau = 0`` until a step is below ``PEAK_STEP``, whose value is carried by
+    Taylor as in :meth:`_Problem.peak_batch`.  Returns ``(value, tau, sign)``.
     """
     qd = E_dense @ x
     aq = np.abs(qd)
@@ -194,31 +200,27 @@ def _peak(x, kh, a_idx, b_idx, const_idx, E_dense):
     tau = tau0 + (0.5 * h * (y0 - y2) / den if den < 0.0 else 0.0)
     a, b = x[a_idx], x[b_idx]
     ka, kb = kh * a, kh * b
-    # one product gives dq/dtau, d2q/dtau2 and q (less the constant) from cos and sin
-    Mc = np.array([kb, -(kh * ka), a])
-    Ms = np.array([-ka, -(kh * kb), b])
+    k2a, k2b = kh * ka, kh * kb
+    # one product gives q and its first three derivatives (less the constant) from cos and sin
+    Mc = np.array([kb, -k2a, -(kh * k2b), a])
+    Ms = np.array([-ka, -k2b, kh * k2a, b])
+    step = 0.0
     for _ in range(8):
         ph = tau * kh
-        g, d2, _ = Mc @ np.cos(ph) + Ms @ np.sin(ph)
-        if d2 == 0.0:
+        g, d2, d3, q = Mc @ np.cos(ph) + Ms @ np.sin(ph)
+        step = g / d2 if d2 != 0.0 else 0.0
+        if abs(step) < PEAK_STEP:
             break
-        step = g / d2
         tau -= step
         if abs(tau - tau0) > h:  # left the neighbourhood of the grid maximum
-            tau = tau0
+            tau, step = tau0, None
             break
-        if abs(step) < 1e-8:  # next correction ~ step^2: below round-off in the value
-            break
-    ph = tau * kh
-    q_tau = float(Mc[2] @ np.cos(ph) + Ms[2] @ np.sin(ph)) + float(np.sum(x[const_idx]))
-    if abs(q_tau) < y1:  # never worse than the grid (guards a stray Newton)
+    if step is not None:
+        q_tau = float(q - step * (g - step * (0.5 * d2 - step * d3 / 6.0))) + float(np.sum(x[const_idx]))
+        tau -= step
+    if step is None or abs(q_tau) < y1:  # the grid: left its neighbourhood, or never worse (a stray Newton)
         tau, q_tau = tau0, float(qd[i])
     return abs(q_tau), tau, (1.0 if q_tau >= 0 else -1.0)
-
-
-#: Newton step on the peak's phase below which :meth:`_Problem.peak_batch` stops: the value
-#: carried to the step's end by Taylor to third order is then exact to rounding.
-PEAK_STEP = 1e-5
 
 
 # ----------------------------------------------------------------------------------------
