@@ -1595,8 +1595,9 @@ def frequency_response(
     omegas : array_like, optional
         Sequential sweep at exactly these frequencies (in the given order), each point
         started from a polynomial predictor through the previous four solutions, runs of
-        points it predicts well solved together.  This is the fast path.  Past a fold it lands on whichever branch Newton reaches (the jump
-        of a physical sweep); use ``omega_range`` to follow the folds.
+        points it predicts well solved together.  This is the fast path.  Past a fold it
+        lands on whichever branch Newton reaches (the jump of a physical sweep); use
+        ``omega_range`` to follow the folds.
     omega_range : (float, float), optional
         Pseudo-arclength continuation in (harmonics, [q_max], omega) from
         ``omega_range[0]`` to ``omega_range[1]``, with step control (on the number of
@@ -1820,16 +1821,16 @@ def _extrapolate(wh, zh, w):
 def _extrapolate_one(wh, zh, w):
     """:func:`_extrapolate` to one target ``w`` from nodes ``wh`` and solutions ``zh``
     (sequences), with the weights in floats (a twentieth of the array calls)."""
-    li = []
+    weights = []
     for i, wi in enumerate(wh):
-        l = 1.0
+        weight = 1.0
         for j, wj in enumerate(wh):
             if j != i:
                 if wi == wj:
                     return np.array(zh[-1], float)
-                l *= (w - wj) / (wi - wj)
-        li.append(l)
-    return np.array(li) @ np.array(zh)
+                weight *= (w - wj) / (wi - wj)
+        weights.append(weight)
+    return np.array(weights) @ np.array(zh)
 
 
 # ----------------------------------------------------------------------------------------
