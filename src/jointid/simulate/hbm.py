@@ -1643,7 +1643,7 @@ def frequency_response(
         w = np.atleast_1d(np.asarray(omegas, float))
         if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w <= 0):
             raise RecordError(f"omegas must be a non-empty 1-D array of positive frequencies, got {omegas!r}")
-        pts = _sweep(problem, w, tol)
+        blocks = _sweep(problem, w, tol)
         method, folds = "sweep", ()
     else:
         try:
@@ -1654,37 +1654,38 @@ def frequency_response(
         if w0 == w1:
             raise RecordError(f"omega_range must span a non-empty interval, got {omega_range!r}")
         pts, folds = _continuation(problem, w0, w1, tol, ds, ds_max, max_steps)
+        blocks = [_block(pts)]
         method = "continuation"
-    return _assemble(problem, pts, folds, method, stability)
+    return _assemble(problem, blocks, folds, method, stability)
 
 
-def _assemble(problem, pts, folds, method, stability):
-    """Build the FrequencyResponse from a list of (omega, z, ev, iterations)."""
-    n_pts = len(pts)
+def _block(pts):
+    """Points ``(omega, z, evaluation, iterations)`` as one block of arrays ``(omegas, Z,
+    residual norms, peak values (NaN where not evaluated), iterations)``."""
+    return (
+        np.array([p[0] for p in pts], float),
+        np.array([p[1] for p in pts], float),
+        np.array([p[2]["err"] for p in pts], float),
+        np.array([np.nan if p[2].get("peak") is None else p[2]["peak"][0] for p in pts], float),
+        np.array([p[3] for p in pts], int),
+    )
+
+
+def _assemble(problem, blocks, folds, method, stability):
+    """Build the FrequencyResponse from consecutive blocks of points (see :func:`_block`)."""
+    omega, Z, res, qmax, its = (np.concatenate(parts) for parts in zip(*blocks))
+    n_pts = omega.size
     nx = problem.active.size
-    omega = np.array([p[0] for p in pts])
     coefs = np.zeros((n_pts, problem.n))
-    theta = np.empty((n_pts, len(problem.lib)))
-    qmax = np.empty(n_pts)
-    res = np.empty(n_pts)
-    its = np.empty(n_pts, dtype=int)
-    missing = []
-    for i, (w, z, ev, it) in enumerate(pts):
-        coefs[i, problem.active] = z[:nx]
-        if problem.closure:
-            qmax[i] = z[nx]
-        else:
-            if ev.get("peak") is not None:
-                qmax[i] = ev["peak"][0]
-            else:
-                missing.append(i)
-            theta[i] = problem.theta0
-        res[i] = ev["err"]
-        its[i] = it
-    if missing:  # q_max of all the points at once
-        qmax[missing] = problem.peak_batch(coefs[missing][:, problem.active])[0]
-    if problem.closure:  # the laws at every point's amplitude at once
-        theta[:] = problem._thetas(qmax)
+    coefs[:, problem.active] = Z[:, :nx]
+    if problem.closure:  # the amplitude is an unknown; the laws at every point's amplitude at once
+        qmax = Z[:, nx].copy()
+        theta = problem._thetas(qmax)
+    else:
+        missing = np.isnan(qmax)
+        if missing.any():  # q_max of all the points at once
+            qmax[missing] = problem.peak_batch(coefs[missing][:, problem.active])[0]
+        theta = np.tile(problem.theta0, (n_pts, 1))
     stable = floquet = None
     if stability:
         floquet = problem.floquet_batch(coefs, omega, theta)
@@ -1742,10 +1743,11 @@ def _sweep(problem, omegas, tol):
     :meth:`_Problem.newton_batch`.  A batched solution is kept while it converged with
     full steps and lies within ``SAME_BRANCH`` of the one-step predictor (the branch the
     point-by-point sweep follows); the first other point is solved alone as before,
-    jumps included.
+    jumps included.  Returns the points as consecutive blocks of arrays (see
+    :func:`_block`): a batch stays one block, without a Python object per point.
     """
     omegas = [float(w) for w in omegas]
-    pts = []
+    blocks = []  # consecutive points as arrays (see _block)
     hist_w, hist_z = [], []
     err1 = np.inf  # relative error of the last one-step prediction
     i, n = 0, len(omegas)
@@ -1766,10 +1768,9 @@ def _sweep(problem, omegas, tol):
             dist = np.sqrt(np.einsum("ij,ij->i", d, d)) / np.maximum(np.sqrt(np.einsum("ij,ij->i", Z, Z)), _TINY)
             bad = ~ok | ~(dist <= SAME_BRANCH)
             taken = int(np.argmax(bad)) if bad.any() else k
-            for j in range(taken):
-                peak = None if peaks is None else tuple(float(p[j]) for p in peaks)
-                pts.append((float(ws[j]), Z[j], {"err": float(err[j]), "peak": peak}, int(its[j])))
             if taken:
+                peak = np.full(taken, np.nan) if peaks is None else peaks[0][:taken]
+                blocks.append((ws[:taken], Z[:taken], err[:taken], peak, its[:taken]))
                 hist_w, hist_z = [float(w) for w in allw[taken : taken + nh]], list(allz[taken : taken + nh])
                 err1 = float(dist[taken - 1])
             i += taken
@@ -1792,13 +1793,13 @@ def _sweep(problem, omegas, tol):
                 jumped = True
             d = z - guess
             err1 = np.inf if jumped else math.sqrt(d @ d) / max(math.sqrt(z @ z), _TINY)
-        pts.append((w, z, ev, it))
+        blocks.append(_block([(w, z, ev, it)]))
         if jumped:
             hist_w, hist_z = [], []  # a jump: restart the predictor
         hist_w = (hist_w + [w])[-nh:]
         hist_z = (hist_z + [z])[-nh:]
         i += 1
-    return pts
+    return blocks
 
 
 def _extrapolate(wh, zh, w):
@@ -1933,8 +1934,8 @@ def _amplitude_scale(problem, w0, w1, tol):
     if problem.closure:
         zmax = 0.0
         try:
-            for _, z, _, _ in _sweep(problem, np.linspace(w0, w1, 21), max(tol, 1e-10)):
-                zmax = max(zmax, float(np.max(np.abs(z))))
+            for _, Z, _, _, _ in _sweep(problem, np.linspace(w0, w1, 21), max(tol, 1e-10)):
+                zmax = max(zmax, float(np.max(np.abs(Z))))
         except ConvergenceError:
             pass
         return zmax if zmax > 0.0 else max(abs(problem.F) / max(w0, w1) ** 2, _TINY)
