@@ -409,7 +409,7 @@ def _uniform_moments(x, omega_dt, n_harmonics, weighted=False, rows=TABLE_ROWS):
     return G, b
 
 
-def _uniform_gn(x, omega, dt, n_harmonics):
+def _uniform_gn(x, omega, dt, n_harmonics, rows=TABLE_ROWS):
     """One Gauss-Newton step on the fundamental of a uniformly sampled periodic signal.
 
     The same model and variable projection as :func:`_gn_pass`, with the Jacobian taken
@@ -417,7 +417,7 @@ def _uniform_gn(x, omega, dt, n_harmonics):
 
     Returns ``(step, standard error of omega, coefficients, explained fraction)``.
     """
-    G, b, G1, G2, b1 = _uniform_moments(x, omega * dt, n_harmonics, weighted=True)
+    G, b, G1, G2, b1 = _uniform_moments(x, omega * dt, n_harmonics, weighted=True, rows=rows)
     coef = linalg.solve(G, b, assume_a="pos")
     n = x.size
     xx = float(x @ x)
@@ -546,8 +546,9 @@ def _refine_uniform(x, omega, dt, n_harmonics, first=32768, growth=8, tol=1e-8):
     while True:
         span = (m - 1) * dt
         max_step = 0.5 * np.pi / span
+        rows = min(TABLE_ROWS, max(512, m // 32))  # a short stage: a short table (built at every pass)
         for _ in range(passes):
-            step, _, _, fraction = _uniform_gn(x[:m], omega, dt, n_harmonics)
+            step, _, _, fraction = _uniform_gn(x[:m], omega, dt, n_harmonics, rows)
             omega += float(np.clip(step, -max_step, max_step))
             if abs(step) * span < tol:
                 break
@@ -594,15 +595,18 @@ def estimate_frequency(t, force, *, channel="force", f_range=None, start_hz=None
         variance (not a single-frequency excitation).
     """
     t = np.asarray(t, dtype=float)
-    x = np.asarray(force, dtype=float)
-    x = x - x.mean()
+    return _estimate_frequency(t, np.asarray(force, dtype=float), _uniform_step(t), channel, f_range, start_hz)
+
+
+def _estimate_frequency(t, force, dt_uniform, channel, f_range=None, start_hz=None):
+    """:func:`estimate_frequency` with the record's uniform step (see :func:`_uniform_step`) known."""
+    x = force - force.mean()
     if not np.any(x):
         raise RecordError(f"channel {channel!r}: the force is zero; no excitation frequency can be found")
     n = x.size
     dt = (t[-1] - t[0]) / (n - 1)
     f0 = float(start_hz) if start_hz is not None else _spectral_peak(x, dt, f_range, channel)
     n_harm = int(max(1, min(FORCE_HARMONICS, np.floor(0.45 / (f0 * dt)))))
-    dt_uniform = _uniform_step(t)
     if dt_uniform is not None:
         omega, fraction = _refine_uniform(x, 2 * np.pi * f0, dt_uniform, n_harm)
     else:
@@ -796,7 +800,7 @@ def _refine_given(t, force, f_given, channel, dt_uniform=None) -> float:
         if fraction >= MIN_SINE_FRACTION and abs(step) * (t[-1] - t[0]) <= DRIFT_TOL:
             return f_given  # the force confirms it
     try:
-        f = estimate_frequency(t, force, channel=channel, start_hz=f_given)
+        f = _estimate_frequency(t, force, dt_uniform, channel, start_hz=f_given)
     except RecordError as exc:
         warnings.warn(f"channel {channel!r}: the given frequency {f_given:.9g} Hz is used as it is; it could "
                       f"not be refined on the force ({exc})", JointidWarning, stacklevel=4)
@@ -861,7 +865,7 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
         if refine_frequency:
             frequency_hz = _refine_given(t, force, frequency_hz, fname, dt_uniform)
     else:
-        frequency_hz = estimate_frequency(t, force, channel=fname)
+        frequency_hz = _estimate_frequency(t, force, dt_uniform, fname)
     periods = (t[-1] - t[0] + dt) * frequency_hz
     if periods < MIN_PERIODS:
         raise RecordError(
