@@ -608,8 +608,7 @@ class _Problem:
         R = np.empty((Z.shape[0], self.m))
         R[:, :nx] = h @ self.P.T - (w * w) * self.k2 * X - self.f
         xn = np.sqrt(np.einsum("ij,ij->i", X, X))
-        kq = abs(self.theta0[self.i_q]) if self.i_q is not None else 0.0
-        sR = np.maximum(np.maximum(abs(self.F), (W * W + kq) * xn), _TINY)
+        sR = np.maximum(np.maximum(abs(self.F), (W * W + self.kq) * xn), _TINY)
         err = np.sqrt(np.einsum("ij,ij->i", R[:, :nx], R[:, :nx])) / sR
         peak = None
         if self.closure:
@@ -745,8 +744,7 @@ class _Problem:
         F = self.F
         if F == 0.0:
             return [np.zeros(self.m)]
-        kq = abs(self.theta0[self.i_q]) if self.i_q is not None else 0.0
-        a_lo = 1e-2 * abs(F) / (kq + omega * omega)  # well below any forced response
+        a_lo = 1e-2 * abs(F) / (self.kq + omega * omega)  # well below any forced response
         A = np.geomspace(a_lo, a_lo * 1e8, n_amplitudes)
         psi = 2.0 * np.pi * np.arange(n_phase) / n_phase
         sn, cs = np.sin(psi), np.cos(psi)
