@@ -6,8 +6,9 @@ its campaign, for the ring-down records) and returns a :class:`CampaignBackbones
 * the backbone of each preload's identified model (``result.models``) over the measured
   amplitude range with 95 % bands from the model's covariance
   (:func:`preload_model_backbone`, also usable on a saved ``results.json`` entry);
-* the equivalent linearisation of every stepped-sine record and the phase-resonance
-  point of every force level;
+* the equivalent linearisation of every stepped-sine record (its force times the
+  identified gain when the force column has an unknown gain, its response corrected by the
+  channel delay) and the phase-resonance point of every force level;
 * the free-decay backbone of every ``excitation = "ringdown"`` record (windowed fit of
   the modal acceleration, windows below the noise floor left out);
 * with an FE structure, the Iwan and cubic + viscous joint laws fitted to the measured
@@ -224,6 +225,32 @@ def _structure_of(campaign, preload, result=None):
     return Structure.from_mapping(table, source=str(campaign.root / "campaign.toml"))
 
 
+def _record_gains(result, outcomes):
+    """The force gain and its standard error for each record (1, 0 with a known gain).
+
+    With an unknown gain (``settings.force_gain != "known"``) a record takes the gain of the
+    pooled fit of its (preload, force level) group; ``None`` where that group has none.
+    """
+    settings = getattr(result, "settings", None)
+    if getattr(settings, "force_gain", "known") == "known":
+        return [1.0] * len(outcomes), [0.0] * len(outcomes)
+    by_group = {}
+    for g in getattr(result, "groups", ()) or ():
+        if getattr(g, "gain", None) is not None:
+            value, se = g.gain.derived()["gain"]
+            if np.isfinite(value) and value > 0:
+                by_group[(g.preload, g.force_level)] = (float(value), float(se) if np.isfinite(se) else 0.0)
+    out = [by_group.get(o.spec.group, (None, None)) for o in outcomes]
+    return [v for v, _ in out], [s for _, s in out]
+
+
+def _delay_stderr(result) -> float:
+    """Standard error of the channel delay the records were corrected by (0 when none or given)."""
+    d = getattr(result, "channel_delay", None)
+    se = getattr(d, "stderr_s", 0.0) if d is not None else 0.0
+    return float(se) if se is not None and np.isfinite(se) else 0.0
+
+
 def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction="rotation", n_points=40,
                            **fit_options) -> CampaignBackbones:
     """All backbones of an identified campaign (module docstring).
@@ -267,11 +294,18 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
         ok = [r for r in result.records if r.ok and r.spec.preload == p and r.signals is not None
               and getattr(r.spec, "excitation", "stepped-sine") == "stepped-sine"]
         stepped = res = None
+        gains, gain_se = _record_gains(result, ok)
+        if any(g is None for g in gains):
+            errors["stepped_sine"] = (f"{sum(g is None for g in gains)} record(s) without an identified force gain "
+                                      "(unknown gain, no pooled fit of their group) left out of the stepped-sine points")
+            keep = [i for i, g in enumerate(gains) if g is not None]
+            ok, gains, gain_se = [ok[i] for i in keep], [gains[i] for i in keep], [gain_se[i] for i in keep]
         if ok:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
                 stepped = equivalent_linearisation([r.signals for r in ok], force_level=[r.spec.force_level for r in ok],
-                                                   label=f"preload {p}")
+                                                   force_gain=gains, force_gain_stderr=gain_se,
+                                                   delay_stderr=_delay_stderr(result), label=f"preload {p}")
                 res = phase_resonance_points(stepped, label=f"preload {p}")
         rds = []
         for s in specs:

@@ -22,7 +22,9 @@ Identified single-mode model (:func:`model_backbone`)
 
 Stepped-sine records (:func:`equivalent_linearisation`, :func:`phase_resonance_points`)
     The first harmonics ``X`` of the displacement and ``Q1`` of the force of one dwell
-    give the restoring force's first harmonic ``h1 = Q1 + w^2 X`` and the equivalent
+    (``Q1`` times the identified gain ``g`` when the force column is, e.g., a shaker
+    voltage; ``X`` from the record's harmonic fit, which carries a channel-delay
+    correction) give the restoring force's first harmonic ``h1 = g Q1 + w^2 X`` and the equivalent
     complex stiffness ``h1 / X = k_eq + i D``.  The record's point is
     ``omega_eq = sqrt(k_eq)``, ``zeta = D / (2 w omega_eq)``, at ``a = |X|``.  ``D`` is
     ``c w`` for viscous damping and the same at any frequency for hysteretic damping, so
@@ -454,63 +456,118 @@ def _fundamental(t, x, omega):
     return X, sigma * np.sqrt(2.0 / x.size)
 
 
-def equivalent_linearisation(signals_list, *, force_level=None, label="") -> Backbone:
+def _series_fundamental(series):
+    """First-harmonic complex amplitude of a :class:`~jointid.signal.harmonics.HarmonicSeries`
+    in absolute time (``x ~ Re(X e^{i w t})``), the convention of :func:`_fundamental`."""
+    c = np.asarray(series.coefficients, float)
+    return (c[1] - 1j * c[2]) * np.exp(-1j * series.omega * series.t0)
+
+
+def _per_record(value, n, name):
+    """A scalar or one value per record (``None`` kept: unknown for that record)."""
+    if value is None or np.ndim(value) == 0:
+        return [value] * n
+    v = list(value)
+    if len(v) != n:
+        raise IdentificationError(f"{name}: one value per record expected ({n}), got {len(v)}")
+    return v
+
+
+def equivalent_linearisation(signals_list, *, force_level=None, force_gain=1.0, force_gain_stderr=0.0,
+                             delay_stderr=0.0, label="") -> Backbone:
     """One backbone point per steady-state record: equivalent stiffness and damping at its amplitude.
 
     Parameters
     ----------
     signals_list : sequence of StateSignals
         Reduced records (:func:`jointid.signal.harmonics.steady_state_signals`): modal
-        force and acceleration, excitation frequency.
+        force and acceleration, excitation frequency.  The response's fundamental is taken
+        from the record's harmonic fit (``signals.acceleration``), so a channel-delay
+        correction applied to it (:func:`jointid.identify.delay.shift_response`) is part
+        of the point.
     force_level : sequence, optional
         Force level of each record (kept in ``meta``).
+    force_gain : float or sequence, default 1
+        Force per unit of the recorded force column (a scalar, or one value per record).
+        With an unknown gain (a shaker voltage recorded as the force) this is the gain
+        identified with the records (:class:`jointid.identify.gain.GainFit`, ``1 / m``):
+        the restoring force is ``g Q1 + w^2 X``.  A ``None`` entry marks a record whose
+        gain is not known: its point is ``nan``.
+    force_gain_stderr : float or sequence, default 0
+        Standard error of the gain; propagated into the point's errors.
+    delay_stderr : float, default 0
+        Standard error [s] of the channel delay by which the records were corrected;
+        propagated into the point's errors.
     label : str
 
     Returns
     -------
     Backbone
         ``source = "stepped-sine"``; ``meta`` holds the excitation frequency, the phase of
-        the response and ``k_eq``, ``D`` of every record.  A record whose ``k_eq`` is not
-        positive gets ``nan``.
+        the response, the gain and ``k_eq``, ``D`` of every record.  A record whose ``k_eq``
+        is not positive, or whose gain is unknown, gets ``nan``.
 
     Notes
     -----
     The standard errors come from the noise left outside the fundamental (the residuals
     of the force and of the acceleration around their first harmonic, which also holds
-    the higher harmonics: a conservative scale), propagated linearly.  The damping
-    ratio's error also holds ``|w / omega_eq - 1| / 2`` of itself: the spread between a
-    viscous and a hysteretic reading of ``D`` away from resonance.
+    the higher harmonics: a conservative scale), the gain's and the delay's standard
+    errors, propagated linearly.  The damping ratio's error also holds
+    ``|w / omega_eq - 1| / 2`` of itself: the spread between a viscous and a hysteretic
+    reading of ``D`` away from resonance.
     """
+    n = len(signals_list)
+    gains = _per_record(force_gain, n, "force_gain")
+    gain_se = _per_record(force_gain_stderr, n, "force_gain_stderr")
+    s_tau = float(delay_stderr or 0.0)
     a, w_eq, z, a_se, w_se, z_se = ([] for _ in range(6))
-    freqs, phases, keqs, Ds = [], [], [], []
-    for s in signals_list:
+    freqs, phases, keqs, Ds, used_gain = [], [], [], [], []
+    for s, g, sg in zip(signals_list, gains, gain_se):
         w = s.omega
-        Xa, sa = _fundamental(s.t, s.accel_measured, w)
+        _, sa = _fundamental(s.t, s.accel_measured, w)  # noise scale of the measured response
+        Xa = _series_fundamental(s.acceleration)  # the fitted (delay-corrected) response
         Q1, sq = _fundamental(s.t, s.force, w)
         X = -Xa / w**2
         sx = sa / w**2
-        G = (Q1 + w**2 * X) / X  # k_eq + i D
-        k, D = G.real, G.imag
         amp = abs(X)
-        # linear propagation: dG = dQ1 / X - Q1 dX / X^2 (the w^2 X part cancels)
-        gs = np.hypot(sq / amp, abs(Q1) * sx / amp**2)
         a.append(amp)
         a_se.append(sx)
         freqs.append(s.frequency_hz)
         phases.append(float(np.angle(X / Q1)))
+        used_gain.append(None if g is None else float(g))
+        if g is None or not np.isfinite(g):
+            keqs.append(np.nan), Ds.append(np.nan)
+            w_eq.append(np.nan), z.append(np.nan), w_se.append(np.nan), z_se.append(np.nan)
+            continue
+        g = float(g)
+        sg = float(sg or 0.0)
+        gQ = g * Q1 / X
+        G = gQ + w**2  # k_eq + i D
+        k, D = G.real, G.imag
         keqs.append(float(k))
         Ds.append(float(D))
-        if k > 0:
-            we = np.sqrt(k)
-            w_eq.append(we)
-            z.append(D / (2 * w * we))
-            w_se.append(gs / (2 * we) / np.sqrt(2))
-            noise = np.hypot(gs / np.sqrt(2) / (2 * w * we), D * gs / np.sqrt(2) / (4 * w * we**3))
-            # the damping convention (viscous or hysteretic) is unknown: its spread is part of the error
-            z_se.append(np.hypot(noise, 0.5 * abs(w / we - 1) * D / (2 * w * we)))
-        else:
+        if not k > 0:
             w_eq.append(np.nan), z.append(np.nan), w_se.append(np.nan), z_se.append(np.nan)
-    meta = {"frequency_hz": [float(f) for f in freqs], "phase": phases, "k_eq": keqs, "D": Ds}
+            continue
+        we = np.sqrt(k)
+        w_eq.append(we)
+        z.append(D / (2 * w * we))
+        # linear propagation: dG = g dQ1 / X - g Q1 dX / X^2 (the w^2 X part cancels), isotropic noise
+        gs = abs(g) * np.hypot(sq / amp, abs(Q1) * sx / amp**2)
+        noise_w = gs / (2 * we) / np.sqrt(2)
+        noise_z = np.hypot(gs / np.sqrt(2) / (2 * w * we), D * gs / np.sqrt(2) / (4 * w * we**3))
+        # the gain (dG/dg = Q1 / X) and the delay (X = X_m e^{i w tau}: dG/dtau = -i w g Q1 / X)
+        extra_w, extra_z = [], []
+        for dG in (gQ / g * sg, -1j * w * gQ * s_tau):
+            dk, dD = dG.real, dG.imag
+            extra_w.append(dk / (2 * we))
+            extra_z.append(dD / (2 * w * we) - D * dk / (4 * w * we**3))
+        w_se.append(float(np.sqrt(noise_w**2 + sum(e**2 for e in extra_w))))
+        # the damping convention (viscous or hysteretic) is unknown: its spread is part of the error
+        z_se.append(float(np.sqrt(noise_z**2 + sum(e**2 for e in extra_z)
+                                  + (0.5 * abs(w / we - 1) * D / (2 * w * we))**2)))
+    meta = {"frequency_hz": [float(f) for f in freqs], "phase": phases, "k_eq": keqs, "D": Ds,
+            "force_gain": used_gain}
     if force_level is not None:
         meta["force_level"] = [None if f is None else float(f) for f in force_level]
     return Backbone(np.array(a), np.array(w_eq), np.array(z), np.array(w_se), np.array(z_se), "stepped-sine",
