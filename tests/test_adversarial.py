@@ -580,7 +580,11 @@ def test_cli_values_checked_by_the_api(manifest_base, tmp_path, capsys):
     write_campaign(camp, "x", [{"file": f"records/{i}.csv", "preload": 1, "force_level": 1} for i in range(3)])
     for extra, pattern in ((["--jobs", "-1"], r"jobs must be an integer"),
                            (["--terms", "q + foo"], r"foo"),
-                           (["--terms", ""], r"term")):
+                           (["--terms", ""], r"term"),
+                           # a library without the linear stiffness has no omega1 to report
+                           (["--terms", "q'"], r"no linear stiffness term 'q'"),
+                           (["--terms", "q' + q^3"], r"no linear stiffness term 'q'"),
+                           (["--terms", "sign(q')"], r"no linear stiffness term 'q'")):
         code, err = _run(["identify", camp, "--out", tmp_path / "o", "--quiet"] + extra, capsys)
         assert code == 2 and re.search(pattern, err), (extra, err)
         assert not (tmp_path / "o").exists()
@@ -596,7 +600,7 @@ def test_out_refused_before_the_work(manifest_base, tmp_path, capsys, monkeypatc
     monkeypatch.setattr(workflow, "identify_campaign", never)
     (tmp_path / "file").write_text("x")
     cases = {tmp_path / "file": "existing file", tmp_path / "file" / "below": "which is a file",
-             manifest_base: "not a jointid output set"}
+             manifest_base: "is the input"}
     for out, pattern in cases.items():
         code, err = _run(["identify", manifest_base, "--out", out], capsys)
         assert code == 2 and pattern in err and str(out) in err, err
@@ -627,7 +631,7 @@ def test_out_read_only_is_refused_by_access_check(manifest_base, tmp_path, capsy
 
 
 def _set_is_consistent(out):
-    run_id = (out / ".jointid-run").read_text().strip()
+    run_id = (out / ".jointid-run").read_text().splitlines()[0]  # the marker's first line
     res = json.loads((out / "results.json").read_text())
     assert res["run_id"] == run_id
     assert run_id in (out / "report.txt").read_text()

@@ -325,7 +325,10 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
 
     if is_auto(settings.terms):  # the model chosen by the data (jointid.identify.selection)
         return identify_auto(campaign, settings)
-    library(settings.terms)  # fail early on unknown terms
+    if "q" not in library(settings.terms).names:  # fails early on unknown terms too
+        raise IdentificationError(
+            f"terms {settings.terms!r} have no linear stiffness term 'q': omega1 (and every law built on it) "
+            "is its coefficient; add it, e.g. \"q + q'\" or \"q - q^3 + q'\"")
     to_modal, structures = None, {}
     if campaign.coordinates == "physical":
         from ..modal.structure import Structure

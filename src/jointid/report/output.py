@@ -1,9 +1,10 @@
 """Write a :class:`~jointid.app.workflow.CampaignResult` to a folder: JSON, CSV, text and figures.
 
 The files of one run form a set: they are written into a temporary folder beside the output
-folder and moved into place once all are complete (:func:`output_set`), so a reader sees the
-previous set or the new one, never a mix, and files of an earlier run that the new one does
-not write (figures of groups no longer present) are gone.  Each set carries a run id
+folder and moved into place once all are complete (:func:`jointid.io.outputset.output_set`),
+so a reader sees the previous set or the new one, never a mix, and files of an earlier run
+that the new one does not write (figures of groups no longer present) are gone; only an
+earlier identify set is replaced, never the campaign or a folder of other files.  Each set carries a run id
 (``results.json`` key ``run_id``, the reports).  Labels taken from a manifest are made safe
 for file names (:func:`slug`), for matplotlib text (:func:`tex_safe`) and for spreadsheets
 (see :func:`jointid.io.results.write_csv`).
@@ -11,19 +12,15 @@ for file names (:func:`slug`), for matplotlib text (:func:`tex_safe`) and for sp
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import os
 import re
-import shutil
-import time
-import uuid
 from pathlib import Path
 
 import numpy as np
 
 from ..identify.hysteresis import hysteresis_loop
-from ..io.results import MARKER, atomic_write, check_output_folder, write_csv, write_json
+from ..io.outputset import MARKER, check_output_folder, new_run_id, output_set
+from ..io.results import atomic_write, write_csv, write_json
 from .formatting import format_pm, format_value, unit_of
 from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
@@ -69,61 +66,6 @@ def tex_safe(value, max_length=60) -> str:
     return text.replace("$", r"\$")
 
 
-def new_run_id() -> str:
-    """A run id: UTC time and a random suffix (``20261122T184501Z-3f9a1c``)."""
-    return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime()) + "-" + uuid.uuid4().hex[:6]
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _remove_leftovers(out: Path) -> None:
-    """Temporary sets of earlier runs on ``out`` whose process is gone (killed mid-write)."""
-    for p in out.parent.glob(f".{out.name}.*-*.tmp"):
-        try:
-            pid = int(p.name[len(out.name) + 2:].split(".", 2)[1].split("-")[0])
-        except (IndexError, ValueError):
-            continue
-        if not _pid_alive(pid):
-            shutil.rmtree(p, ignore_errors=True)
-
-
-@contextlib.contextmanager
-def output_set(out, run_id=None):
-    """Write a set of files into a temporary folder, then put it in place of ``out``.
-
-    Yields the temporary folder.  On success the previous ``out`` (if any) is moved aside and
-    removed, and the new set renamed to ``out``; on any error or interrupt the temporary folder
-    is removed and ``out`` is left as it was.  A set interrupted by SIGKILL leaves a hidden
-    ``.<name>.new.<pid>-<run id>.tmp`` folder, removed by the next run on the same ``out``.
-    """
-    out = Path(out)
-    run_id = run_id or new_run_id()
-    check_output_folder(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    _remove_leftovers(out)
-    tmp = out.parent / f".{out.name}.new.{os.getpid()}-{run_id}.tmp"
-    tmp.mkdir()
-    try:
-        atomic_write(tmp / MARKER, run_id + "\n")
-        yield tmp
-        old = out.parent / f".{out.name}.old.{os.getpid()}-{run_id}.tmp"
-        if out.exists():
-            os.replace(out, old)
-        os.replace(tmp, out)
-        shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
 def write_results(result, out_dir, figures=True, html=True) -> dict:
     """Write ``results.json``, ``records.csv``, ``groups.csv``, ``damping_laws.csv``,
     ``report.txt``, PNG figures and a self-contained ``report.html``, as one set.
@@ -140,7 +82,7 @@ def write_results(result, out_dir, figures=True, html=True) -> dict:
     """
     final = Path(out_dir)
     run_id = new_run_id()
-    with output_set(final, run_id) as out:
+    with output_set(final, run_id, kind="identify", inputs=(getattr(result, "root", None),)) as out:
         paths = _write_set(result, out, run_id, figures, html)
     return {k: ([final / Path(p).relative_to(out) for p in v] if isinstance(v, list) else final / Path(v).relative_to(out))
             for k, v in paths.items()}
