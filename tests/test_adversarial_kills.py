@@ -32,7 +32,7 @@ def _command(camp, out):
 
 def _consistent(out):
     """The run id of the complete set in ``out`` (results.json, report.txt and marker agree)."""
-    run_id = (out / ".jointid-run").read_text().strip()
+    run_id = (out / ".jointid-run").read_text().splitlines()[0]  # the marker's first line
     assert json.loads((out / "results.json").read_text())["run_id"] == run_id
     assert run_id in (out / "report.txt").read_text()
     assert run_id in (out / "report.html").read_text()

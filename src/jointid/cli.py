@@ -367,9 +367,9 @@ def main(argv=None) -> int:
             warnings.simplefilter("ignore", JointidWarning)
         try:
             if getattr(args, "out", None) is not None:  # refuse an unwritable --out before the work
-                from .io.results import check_output_folder
+                from .io.outputset import check_command_output
 
-                check_output_folder(args.out, replace_set=args.command == "identify")
+                check_command_output(args.command, args.out, [getattr(args, k, None) for k in ("campaign", "plan", "description")])
             return COMMANDS[args.command](args)
         except KeyboardInterrupt:
             print(f"jointid {args.command}: interrupted; earlier results are left as they were", file=sys.stderr)

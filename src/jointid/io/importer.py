@@ -70,6 +70,7 @@ from .campaign import (
     write_csv_record,
 )
 from .channels import Channels, merge_channels, validate_channels
+from .outputset import output_set
 
 #: Keys of an import description, of its ``[import]`` table, of a record and of a source.
 DESCRIPTION_KEYS = ("campaign", "import", "record", "structure")
@@ -335,12 +336,25 @@ def _source_path(data_folder: Path, rel: str, i: int) -> Path:
 
 
 def import_campaign(description, out_dir) -> ImportResult:
-    """Write the campaign described by ``description`` (a TOML file) into ``out_dir``."""
+    """Write the campaign described by ``description`` (a TOML file) into ``out_dir``.
+
+    The campaign is written as one output set of kind ``import``
+    (:func:`jointid.io.outputset.output_set`): it replaces an earlier import into ``out_dir``
+    as a whole (no stale records), and a folder holding anything else (a campaign written by
+    hand, the data folder, the description) is refused before any file is read.
+    """
     desc = Path(description)
     d = read_toml(desc, "import description")
-    ctx = f"{desc} "
     head, imp, defaults, records, data_folder = _validate(d, desc)
-    out = Path(out_dir)
+    final = Path(out_dir)
+    with output_set(final, kind="import", inputs=(desc, data_folder)) as out:
+        written, failed = _import_records(d, desc, head, imp, defaults, records, data_folder, out)
+    return ImportResult(final, tuple(written), tuple(failed))
+
+
+def _import_records(d, desc, head, imp, defaults, records, data_folder, out):
+    """Read the sources and write the records and ``campaign.toml`` into ``out``."""
+    ctx = f"{desc} "
     entries, written, failed = [], [], []
     for i, entry in enumerate(records):
         try:
@@ -380,4 +394,4 @@ def import_campaign(description, out_dir) -> ImportResult:
         raise RecordError(f"{desc}: no record could be imported:\n  " + "\n  ".join(m for _, m in failed))
     write_campaign(out, str(head.get("name", desc.stem)), entries, coordinates=head.get("coordinates", "modal"),
                    structure=d.get("structure"))
-    return ImportResult(out, tuple(written), tuple(failed))
+    return written, failed

@@ -155,8 +155,7 @@ def check_output_folder(out, *, replace_set=True) -> Path:
     need = probe if probe != out else out.parent if replace_set else out
     if not os.access(need, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK | os.X_OK)):
         raise OutputError(f"{out}: output folder is not writable (no write permission on {need})")
-    if replace_set and out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists() \
-            and not (out / "results.json").exists():
+    if replace_set and out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists():
         raise OutputError(f"{out}: exists and holds files that are not a jointid output set; the set replaces "
-                          f"the whole folder, so give a new or empty folder")
+                          f"the whole folder, so give a new or empty folder (see jointid.io.outputset)")
     return out
