@@ -29,48 +29,56 @@ def _axes(ax):
     raise ValueError("ax must be a pair of axes (omega, zeta)")
 
 
-def plot_backbone(backbone, ax=None, label=None, units="Hz"):
-    """Draw one backbone on a pair of axes (``omega`` or ``f`` above, ``zeta`` below), log amplitude.
+def plot_backbone(backbone, ax=None, label=None, units="Hz", amplitude_unit="m"):
+    """Draw one backbone on a pair of axes (``omega`` or ``f`` above, ``zeta`` in % below), log amplitude.
 
     Curves (``model``, ``rig``) are lines with a shaded 95 % band; measured points carry 95 %
-    error bars.
+    error bars.  ``amplitude_unit`` is the unit of the first-harmonic amplitude ``a``.
     """
     fig, (aw, az) = _axes(ax)
     b = backbone.sorted()
     k = 1 / (2 * np.pi) if units == "Hz" else 1.0
     style = _STYLE.get(b.source, dict(fmt="o", marker="o"))
     lab = label or (f"{b.source}" + (f" ({b.label})" if b.label else ""))
+    measures = []
     if style["marker"] is None:
         (line,) = aw.plot(b.amplitude, k * b.omega, style["fmt"], label=lab)
-        az.plot(b.amplitude, b.zeta, style["fmt"], color=line.get_color())
+        az.plot(b.amplitude, 100 * b.zeta, style["fmt"], color=line.get_color())
         if np.any(np.isfinite(b.omega_stderr) & (b.omega_stderr > 0)):
             lo, hi = b.omega_band
             aw.fill_between(b.amplitude, k * lo, k * hi, color=line.get_color(), alpha=0.2, lw=0)
             lo, hi = b.zeta_band
-            az.fill_between(b.amplitude, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+            az.fill_between(b.amplitude, 100 * lo, 100 * hi, color=line.get_color(), alpha=0.2, lw=0)
+            measures.append("band95")
     else:
         se_w = np.nan_to_num(b.omega_stderr)
         se_z = np.nan_to_num(b.zeta_stderr)
         c = aw.errorbar(b.amplitude, k * b.omega, yerr=1.96 * k * se_w, fmt=style["fmt"], ms=3, capsize=1.5,
                         label=lab)
-        az.errorbar(b.amplitude, b.zeta, yerr=1.96 * se_z, fmt=style["fmt"], ms=3, capsize=1.5,
+        az.errorbar(b.amplitude, 100 * b.zeta, yerr=196 * se_z, fmt=style["fmt"], ms=3, capsize=1.5,
                     color=c.lines[0].get_color())
+        if np.any(se_w > 0) or np.any(se_z > 0):
+            measures.append("ci95 bars")
     for a in (aw, az):
         a.set_xscale("log")
         a.grid(True, which="both", alpha=0.3)
     aw.set_ylabel("natural frequency [Hz]" if units == "Hz" else "omega [rad/s]")
-    az.set_ylabel("damping ratio [1]")
+    az.set_ylabel("damping ratio zeta [%]")
     for a in (aw, az):  # shared amplitude axis: labelled on both panels
-        a.set_xlabel("first-harmonic amplitude a [m] (modal)")
+        a.set_xlabel(f"first-harmonic amplitude a [{amplitude_unit}] (modal)")
     aw.legend(fontsize="small")
+    if measures:
+        from .figure_meta import mark_comparison
+
+        mark_comparison(aw, "backbones omega(a), zeta(a): model vs measured points", *measures)
     return fig, (aw, az)
 
 
-def plot_backbones(backbones, ax=None, title=None, units="Hz"):
+def plot_backbones(backbones, ax=None, title=None, units="Hz", amplitude_unit="m"):
     """Several backbones on one pair of axes (a model curve, stepped-sine points, ring-downs ...)."""
     fig, axes = _axes(ax) if ax is not None else (None, None)
     for b in backbones:
-        fig, axes = plot_backbone(b, ax=axes, units=units)
+        fig, axes = plot_backbone(b, ax=axes, units=units, amplitude_unit=amplitude_unit)
     if title and axes is not None:
         axes[0].set_title(title)
     return fig, axes

@@ -133,93 +133,156 @@ def _write_set(result, out, run_id, figures, html) -> dict:
 
 
 def _law_rows(summary) -> list:
-    from .summary import coefficient_note
+    from .summary import coefficient_note, run_units
 
+    units = run_units(summary)
     rows = []
     for d in summary.get("damping_law") or []:
         coef, se = d.get("coefficients"), d.get("stderr") or []
         if coef is None:
             rows.append({"preload": str(d.get("preload")), "coefficient": "–", "value ± standard error": "not fitted",
-                         "unit": "", "note": "", "fit": str(d.get("error") or "")})
+                         "95 % interval": "–", "unit": "", "note": "", "fit": str(d.get("error") or "")})
             continue
         fit = (f"chi²/dof {format_value(d.get('chi2_dof'), 3)}, p = {format_value(d.get('p_value'), 2)}, "
                f"{d.get('n_records', '?')} records") if d.get("chi2_dof") is not None else ""
         for k, v in enumerate(coef):
             s_k = se[k] if k < len(se) else None
-            rows.append({"preload": str(d.get("preload")), "coefficient": f"c{k}",
-                         "value ± standard error": format_pm(v, s_k), "unit": unit_of(f"c{k}"),
-                         "note": coefficient_note(f"c{k}", v, s_k), "fit": fit if k == 0 else ""})
+            name = f"c{k}"
+            label, unit = units.get(name, (name, unit_of(name)))
+            ci = [v - Z95 * s_k, v + Z95 * s_k] if s_k is not None and np.isfinite(s_k) else None
+            rows.append({"preload": str(d.get("preload")), "coefficient": label,
+                         "value ± standard error": format_pm(v, s_k), "95 % interval": format_ci(ci, s_k),
+                         "unit": unit if k <= 2 or label == name else f"1/(m^{k} s)",
+                         "note": coefficient_note(name, v, s_k), "fit": fit if k == 0 else ""})
     return rows
 
 
 def _power_rows(summary) -> list:
+    from .summary import run_units
+
+    gain_free = run_units(summary)["F"][1] == "V"
+    F = f"F [{run_units(summary)['F'][1]}]"
+    alpha_unit = "m²/s² / (m/s²)^n" if gain_free else "J/N^n"
     rows = []
     for d in summary.get("power_law") or []:
-        rows.append({"preload": str(d.get("preload")), "F [N]": format_value(d.get("force_level")),
-                     "alpha": format_value(d.get("alpha"), 4),
-                     "n ± standard error": format_pm(d.get("n"), d.get("n_stderr")) if d.get("n") is not None
-                     else str(d.get("error") or "–"),
+        n_pts = len(d.get("force") or []) or None
+        dof = None if n_pts is None else n_pts - 2  # U = alpha F^n: two parameters
+        rows.append({"preload": str(d.get("preload")), F: format_value(d.get("force_level")),
+                     "records": n_pts if n_pts is not None else "–",
+                     f"alpha [{alpha_unit}]": format_value(d.get("alpha"), 4),
+                     "n ± standard error [1]": format_pm(d.get("n"), d.get("n_stderr"), dof=dof)
+                     if d.get("n") is not None else str(d.get("error") or "–"),
                      "n within [2, 3]": d.get("within_2_3")})
     return rows
 
 
 def _reprediction_table(summary) -> list:
+    from .summary import run_units
+
+    F = f"F [{run_units(summary)['F'][1]}]"
     rows = []
     loops = {(str(x.get("preload")), str(x.get("force_level"))): x for x in (summary.get("reprediction") or {}).get("loops", [])}
     for d in (summary.get("reprediction") or {}).get("groups", []):
         key = (str(d.get("preload")), str(d.get("force_level")))
         loop = loops.get(key, {})
-
-        def pct(v, digits=2):
-            return "–" if v is None else f"{v:+.{digits}f} %"
-
+        resolved = d.get("peak_resolved")
+        peak = (lambda v: format_percent(v, 3, sign=True)) if resolved is not False else (
+            lambda v: "not bracketed by the dwells")
+        lrms = (loop.get("filtered") or {}).get("rms_difference")
         rows.append({
-            "preload": key[0], "F": format_value(d.get("force_level")),
-            "peak frequency error": pct(d.get("peak_frequency_error_percent"), 3),
-            "peak magnitude error": pct(d.get("peak_amplitude_error_percent")),
-            "rms error at the measured dwells": "–" if d.get("point_rms_error_percent") is None
-            else f"{d['point_rms_error_percent']:.2f} %",
-            "loop rms difference (filtered)": "–" if (loop.get("filtered") or {}).get("rms_difference") is None
-            else f"{100 * loop['filtered']['rms_difference']:.1f} %",
-            "peak resolved by the dwells": d.get("peak_resolved"),
+            "preload": key[0], F: format_value(d.get("force_level")),
+            "peak frequency error [%]": peak(d.get("peak_frequency_error_percent")),
+            "peak magnitude error [%]": peak(d.get("peak_amplitude_error_percent")),
+            "rms error at the measured dwells [%]": format_percent(d.get("point_rms_error_percent"), 2),
+            "loop rms difference (filtered) [%]": format_percent(None if lrms is None else 100 * lrms, 2),
+            "peak resolved by the dwells": resolved,
         })
     return rows
 
 
+#: Significant digits of values shown without a standard error, where four would hide the differences.
+_DIGITS = {"frequency_hz": 6, "omega1": 6, "f1_hz": 7, "f1_hz_mean": 7, "f_peak_predicted": 6, "f_peak_reference": 6}
+
+
+def _display(rows, columns) -> list:
+    """Rows with display headers (units in brackets) for the ``{key: header}`` of ``columns``;
+    numbers without a standard error get :data:`_DIGITS` significant digits (default four)."""
+    def cell(k, v):
+        if k in _DIGITS and isinstance(v, (float, np.floating)):
+            return format_value(v, _DIGITS[k])
+        return v
+
+    return [{h: cell(k, r.get(k)) for k, h in columns.items()} for r in rows]
+
+
+def _record_columns(units) -> dict:
+    F, (k3n, k3u), (cn, cu) = units["F"][1], units["k3"], units["c"]
+    return {"index": "index", "file": "file", "preload": "preload", "force_level": f"F [{F}]",
+            "frequency_hz": "f [Hz]", "status": "status", "q_max": "q_max [m]", "omega1": "omega1 [rad/s]",
+            "k3": f"{k3n} [{k3u}]", "c": f"{cn} [{cu}]", "c_pooled": f"{cn} pooled [{cu}]", "error": "error"}
+
+
+def _group_columns(units) -> dict:
+    F, (k3n, k3u) = units["F"][1], units["k3"]
+    return {"preload": "preload", "force_level": f"F [{F}]", "n_records": "records", "f1_hz": "f1 [Hz]",
+            "omega1": "omega1 [rad/s]", "k3": f"{k3n} [{k3u}]", "k3_stderr": f"se({k3n}) [{k3u}]",
+            "f1_hz_mean": "f1 band average [Hz]", "k3_mean": f"{k3n} band average [{k3u}]", "alpha": "alpha",
+            "n": "n [1]"}
+
+
+def _reprediction_columns(units) -> dict:
+    F = units["F"][1]
+    return {"preload": "preload", "force_level": f"F [{F}]", "forcing": f"modal forcing [{'V' if F == 'V' else 'N'}]",
+            "f_peak_predicted": "peak f predicted [Hz]", "f_peak_reference": "peak f reference [Hz]",
+            "f_peak_error_%": "peak f error [%]", "H_peak_error_%": "peak magnitude error [%]",
+            "points_rms_error_%": "rms error at the dwells [%]", "reference": "reference",
+            "folds_hz": "folds [Hz]", "loop_rms_filtered": "loop rms difference, filtered [1]",
+            "loop_rms_unfiltered": "loop rms difference, unfiltered [1]"}
+
+
 def campaign_sections(result, figs, summary=None) -> list:
-    """HTML sections of a campaign result: the summary first (model per preload with 95 %
-    intervals, the paper's Table 5 with the band average flagged, damping law, verdicts), then
-    the re-prediction errors, figures, warnings and flagged records, records, and an appendix."""
+    """HTML sections of a campaign result: the summary first (which model to believe, the model
+    the data select and the preload model with 95 % intervals, the force gain when identified,
+    the paper's Table 5 with the band average flagged, damping law, adequacy and selection
+    tables), then the re-prediction errors, figures, warnings and flagged records, records, and
+    an appendix."""
     from .reprediction_plots import reprediction_rows
-    from .summary import adequacy_rows, error_lines, model_rows, table5_rows, warning_rows
+    from .summary import error_lines, lead_tables, run_units, warning_rows
 
     summary = result.summary() if summary is None else summary
+    units = run_units(summary)
     s = summary.get("settings") or {}
-    head = Section("Summary", [
+    choice, tables = lead_tables([summary])
+    gain_free = units["F"][1] == "V"
+    head = Section("Summary", choice + [
         f"{summary.get('n_records', len(result.records))} records, {summary.get('n_failed', len(result.failed))} failed, "
         f"{len(summary.get('flagged') or [])} flagged by the plausibility checks. Model terms: "
         f"{' + '.join(s.get('terms') or [])}; {s.get('n_harmonics', '?')} harmonics; damping law order "
-        f"{s.get('damping_order', '?')}. Modal quantities of the mass-normalised first mode in the seed paper's units "
-        "(k3 in N/m³ and c in N s/m for one kg of modal mass, i.e. 1/(m² s²) and 1/s per unit modal mass as in "
-        "jointid.conventions); values are rounded to two significant digits of their standard error."])
-    head.tables.append(("Identified model per preload: one regression over all its records, damping law inside "
-                        "(value ± standard error, 95 % interval)", model_rows(summary), None))
-    head.tables.append(("The paper's Table 5 per force level: pooled fit (shared omega1 and k3, one c per record) and "
-                        "the band average of single-record k3 (the paper's number), flagged where unresolved",
-                        table5_rows(summary), None))
-    head.tables.append(("Damping law c(q_max) = c0 + c1 q_max + c2 q_max² (the paper's two-step method, Table 2)",
-                        _law_rows(summary), None))
-    verdicts = adequacy_rows(summary)
-    if verdicts:
-        head.tables.append(("Model adequacy and selection", verdicts, None))
-    else:
+        f"{s.get('damping_order', '?')}. "
+        + ("The force column is a voltage with an unknown gain (--force-gain unknown): force levels are in V and "
+           "the stiffness and damping coefficients are ratios to the identified inertia coefficient m = 1/g "
+           "(k3/m in 1/(m² s²), c/m in 1/s: per unit modal mass). " if gain_free else
+           "Modal quantities of the mass-normalised first mode in the seed paper's units (k3 in N/m³ and c in N s/m "
+           "for one kg of modal mass, i.e. 1/(m² s²) and 1/s per unit modal mass as in jointid.conventions). ")
+        + "Values are rounded to two significant digits of their standard error."])
+    at = next(i for i, t in enumerate(tables) if t[0].startswith("The paper's Table 5"))
+    head.tables += tables[:at + 1]
+    law_title = ("Damping law c(q_max)/m = c0 + c1 q_max + c2 q_max² (per unit modal mass)" if gain_free else
+                 "Damping law c(q_max) = c0 + c1 q_max + c2 q_max² (the paper's two-step method, Table 2)")
+    head.tables.append((law_title, _law_rows(summary), None))
+    head.tables += tables[at + 1:]
+    if len(tables) == at + 1:
         head.paragraphs.append("No model adequacy verdict in these results.")
-    laws = Section("Energy per cycle", ["U = alpha F^n over each group's records (seed Figs 15, 16); U in J, F in N."])
+    laws = Section("Energy per cycle", ["U = alpha F^n over each group's records (seed Figs 15, 16); " + (
+        "U per unit modal mass in m²/s² and F the modal joint force per unit modal mass in m/s²." if gain_free else
+        "U in J and F, the modal joint force amplitude, in N (one kg of modal mass).")
+        + " A group of two records fits U = alpha F^n exactly: its n has no standard error."])
     laws.tables.append(("U = alpha F^n", _power_rows(summary), None))
     repred = Section("Identified vs measured", [
         "Each group's identified model solved by harmonic balance at the group's forcing, against the measured "
-        "dwells: peak frequency and magnitude errors, rms error at the measured points, and the rms difference "
-        "between measured and identified hysteresis loops (relative to the measured loop's rms)."])
+        "dwells: peak frequency and magnitude errors (only where the dwells bracket the peak), rms error at the "
+        "measured points, and the rms difference between measured and identified hysteresis loops (relative to the "
+        "measured loop's rms)."])
     repred.tables.append(("re-prediction errors", _reprediction_table(summary), None))
     figures = Section("Figures", figures=[(caption, fig) for _, caption, fig in figs])
     notes = Section("Warnings and flagged records")
@@ -234,18 +297,27 @@ def campaign_sections(result, figs, summary=None) -> list:
         for w in m.get("warnings") or []:
             notes.paragraphs.append(f"preload {m.get('preload')} model: {w}")
     records = Section("Records")
-    records.tables.append(("records", record_rows(result), ["index", "file", "preload", "force_level", "frequency_hz",
-                                                             "status", "q_max", "omega1", "k3", "c", "c_pooled",
-                                                             "error"]))
+    records.tables.append(("records", _display(record_rows(result), _record_columns(units)), None))
     appendix = Section("Appendix: settings and checks")
     appendix.tables.append(("settings", [{"setting": k, "value": v if isinstance(v, (int, float, str)) or v is None
                                           else str(v)} for k, v in s.items()], None))
-    appendix.tables.append(("groups (all numbers)", group_rows(result), None))
-    appendix.tables.append(("re-predicted FRFs (all numbers)", reprediction_rows(result), None))
+    appendix.tables.append(("groups (all numbers)", _display(group_rows(result), _group_columns(units)), None))
+    appendix.tables.append(("re-predicted FRFs (all numbers)",
+                            _display(reprediction_rows(result), _reprediction_columns(units)), None))
     delay = summary.get("channel_delay") or {}
     if delay.get("delay_s") is not None or delay.get("error"):
-        appendix.paragraphs.append(f"channel delay: {delay}")
+        appendix.paragraphs.append(_delay_text(delay))
     return [head, laws, repred, figures, notes, records, appendix]
+
+
+def _delay_text(delay) -> str:
+    """The channel delay as a sentence with its standard error, 95 % interval and unit (or its error)."""
+    if delay.get("delay_s") is None:
+        return f"channel delay not estimated: {delay.get('error')}"
+    v, se = float(delay["delay_s"]) * 1e3, delay.get("stderr_s")
+    se = float(se) * 1e3 if se is not None and np.isfinite(se) and se > 0 else None
+    return ("channel delay tau of the response channel behind the excitation channel (negative: the response "
+            f"leads): {format_estimate(v, se, 'ms') if se is not None else format_value(v, 4) + ' ms (given)'}")
 
 
 #: Most figures drawn for one campaign (a campaign of many groups would otherwise spend
@@ -264,16 +336,17 @@ def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
             break
         law = result.damping_laws[p]
         groups = [g for g in result.groups if g.preload == p]
+        gain_free = any(g.gain is not None for g in groups)  # force gain identified: per unit modal mass
         if law is not None:
             ax = new_axes()
-            plot_damping_law(law, ax=ax, label=f"preload {tex_safe(p)}")
+            plot_damping_law(law, ax=ax, label=f"preload {tex_safe(p)}", gain_free=gain_free)
             ax.set_title(f"damping law, preload {tex_safe(p)}")
             written.append((f"damping_law_{slug(p)}.png", f"damping law c(q_max), preload {p}", ax.figure))
         laws = [g for g in groups if g.power_law is not None]
         if laws:
             ax = new_axes()
             for g in laws:
-                plot_power_law(g.power_law, ax=ax, label=f"F = {tex_safe(g.force_level)}")
+                plot_power_law(g.power_law, ax=ax, label=f"F = {tex_safe(g.force_level)}", gain_free=gain_free)
             ax.set_title(f"energy per cycle, preload {tex_safe(p)}")
             written.append((f"power_law_{slug(p)}.png", f"energy per cycle vs joint force, preload {p}", ax.figure))
         for g in groups:
@@ -284,14 +357,10 @@ def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
             if not members:
                 continue
             tag = f"{slug(p)}_F{slug(g.force_level)}"
-            f = np.array([r.signals.frequency_hz for r in members])
-            summaries = [r.summary() for r in members]
-            vals = {"f1 [Hz]": [d["f1_hz"] for d in summaries]}
-            for name in ("k3", "c"):
-                if all(d[name] is not None for d in summaries):
-                    vals[name] = [d[name] for d in summaries]
-            axes = plot_parameters_vs_frequency(f, vals)
-            axes[0].set_title(f"per-record parameters, preload {tex_safe(p)}, F = {tex_safe(g.force_level)}")
+            from .identify_plots import plot_record_parameters
+
+            axes = plot_record_parameters(members, g, gain_free=g.gain is not None, title=f"per-record parameters, "
+                                          f"preload {tex_safe(p)}, F = {tex_safe(g.force_level)}")
             written.append((f"parameters_{tag}.png", f"per-record parameters, preload {p}, F = {g.force_level}",
                             axes[0].figure))
             if g.gain is not None:  # the force column is not a force: no loops in force units

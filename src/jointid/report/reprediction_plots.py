@@ -16,8 +16,11 @@ __all__ = ["plot_reprediction", "reprediction_rows", "reprediction_figures"]
 _MARKERS = ("+", "o", "s", "^", "v", "D", "x")
 
 
-def plot_reprediction(repredictions, ax=None, *, title=None, show_exact=True):
+def plot_reprediction(repredictions, ax=None, *, title=None, show_exact=True, gain_free=False):
     """Measured nonlinear FRF points and the re-predicted curves.
+
+    The legend (outside the axes, clear of the peaks) gives each curve's rms error at the
+    measured points and, where the dwells resolve the peak, the peak errors.
 
     Parameters
     ----------
@@ -27,20 +30,26 @@ def plot_reprediction(repredictions, ax=None, *, title=None, show_exact=True):
     title : str, optional
     show_exact : bool
         Also draw an exact reference curve where a re-prediction carries one.
+    gain_free : bool
+        The force gain was identified: the levels are excitation amplitudes [V] and the FRF is
+        the modal acceleration over the gain times the excitation.
 
     Returns
     -------
     Axes
     """
-    ax = new_axes(ax)
+    ax = new_axes(ax, figsize=(9.0, 4.2))
+    level_unit = "V" if gain_free else "N"
+    rms_shown = False
     for i, r in enumerate(sorted(repredictions, key=lambda r: float(r.force_level))):
         pts = ax.plot(r.measured_frequency_hz, r.measured, _MARKERS[i % len(_MARKERS)], ms=5, ls="none",
-                      label=f"measured, level {r.force_level:g}")
+                      label=f"measured, F = {r.force_level:g} {level_unit}")
         color = pts[0].get_color()
         pts_err = r.point_rms_error_percent
-        label = "identified (HBM)" + (f": points rms {pts_err:.2f} %" if pts_err is not None else "")
+        label = "identified (HBM)" + (f": rms error at the dwells {pts_err:.2f} %" if pts_err is not None else "")
+        rms_shown |= pts_err is not None
         if r.peak_resolved:
-            label += (f", peak {r.peak_frequency_error_percent:+.3f} % in f, "
+            label += (f",\npeak {r.peak_frequency_error_percent:+.3f} % in f, "
                       f"{r.peak_amplitude_error_percent:+.2f} % in |H|")
         ax.plot(r.frequency_hz, r.predicted, "-", lw=1.1, color=color, label=label)
         for f_fold in r.folds_hz:
@@ -49,13 +58,21 @@ def plot_reprediction(repredictions, ax=None, *, title=None, show_exact=True):
         if show_exact and r.exact is not None:
             ax.plot(r.exact.frequency_hz, np.abs(r.exact.H), ":", lw=0.9, color="0.35")
     ax.set_xlabel("excitation frequency [Hz]")
-    quantity = repredictions[0].quantity if repredictions else "|response / force|"
-    unit = "[m/(s² N)]" if "force" in quantity and "acceleration" in quantity else "[response unit / excitation unit]"
-    ax.set_ylabel(quantity if "[" in quantity else f"{quantity} {unit}")
+    if gain_free:
+        ax.set_ylabel("|modal acceleration / (gain × excitation)| [1]")
+    else:
+        quantity = repredictions[0].quantity if repredictions else "|response / force|"
+        unit = "[m/(s² N)]" if "force" in quantity and "acceleration" in quantity \
+            else "[response unit / excitation unit]"
+        ax.set_ylabel(quantity if "[" in quantity else f"{quantity} {unit}")
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize=10)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=6.5)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
+    if rms_shown:
+        from .figure_meta import mark_comparison
+
+        mark_comparison(ax, "re-predicted (harmonic balance) vs measured nonlinear FRF", "rms error")
     return ax
 
 
@@ -96,7 +113,9 @@ def reprediction_figures(result) -> list:
     reps = list(getattr(result, "repredictions", ()))
     for p in dict.fromkeys(r.preload for r in reps):
         mine = [r for r in reps if r.preload == p]
-        ax = plot_reprediction(mine, title=f"re-predicted nonlinear FRF, preload {str(p).replace('$', '')}")
+        gain_free = any(g.gain is not None for g in result.groups if g.preload == p)
+        ax = plot_reprediction(mine, title=f"re-predicted nonlinear FRF, preload {str(p).replace('$', '')}",
+                               gain_free=gain_free)
         out.append((f"reprediction_{slug(p)}.png",
                     f"nonlinear FRFs of preload {p}: measured dwells (markers) and the identified model solved by "
                     "harmonic balance (lines); legend: peak errors", ax.figure))
@@ -112,8 +131,9 @@ def reprediction_figures(result) -> list:
             continue
         axes = np.atleast_1d(new_axes(None, figsize=(9.0, 3.8), ncols=len(drawn)))
         for ax, loop in zip(axes, drawn):
-            plot_hysteresis(loop, ax=ax, show_identified=True)
-            ax.set_title(f"rms difference {100 * loop.rms_difference:.1f} %", fontsize=8)
+            plot_hysteresis(loop, ax=ax, show_identified=True, gain_free=True)
+            ax.set_title(f"{'filtered' if loop.filtered else 'unfiltered'}: rms difference "
+                         f"{100 * loop.rms_difference:.1f} %", fontsize=8)
         out.append((f"hysteresis_{slug(g.preload)}_F{slug(g.force_level)}.png",
                     f"hysteresis loops (gain-free units) of {best.spec.file}, preload {g.preload}, "
                     f"level {g.force_level}", axes[0].figure))

@@ -98,7 +98,7 @@ def plot_linear_frfs(curves, ax=None, f_range=None):
         sel = np.ones_like(f, bool) if f_range is None else (f >= f_range[0]) & (f <= f_range[1])
         ax.semilogy(*_envelope(f[sel], np.abs(np.asarray(H)[sel])), style, lw=1.0, label=label)
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("|accelerance| at 42 cm [(m/s^2)/N]")
+    ax.set_ylabel("|accelerance| at 42 cm [(m/s²)/N]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     return ax
@@ -106,24 +106,33 @@ def plot_linear_frfs(curves, ax=None, f_range=None):
 
 def plot_nonlinear_frfs(repredictions, ax=None, title=None, show_exact=True):
     """Nonlinear FRFs (seed Fig 10): measured dwells per force level (markers) and the
-    identified model's harmonic-balance re-prediction (lines)."""
+    identified model's harmonic-balance re-prediction (lines), with each curve's rms error at
+    the dwells in the legend (outside the axes, clear of the peaks)."""
     ax = new_axes(ax)
+    rms_shown = False
     for i, r in enumerate(sorted(repredictions, key=lambda r: r.force_level)):
         marker, fill = _marker(r.force_level, i)
         pts = ax.plot(r.measured_frequency_hz, r.measured, marker, ms=5, fillstyle=fill, ls="none",
                       label=f"measured F = {r.force_level:g} N")
+        err = getattr(r, "point_rms_error_percent", None)
+        rms_shown |= err is not None
         ax.plot(r.frequency_hz, r.predicted, "-", lw=1.1, color=pts[0].get_color(),
-                label=f"identified model (HBM), F = {r.force_level:g} N")
+                label=f"identified model (HBM), F = {r.force_level:g} N"
+                      + (f":\nrms error at the dwells {err:.2f} %" if err is not None else ""))
         if show_exact:
             ax.plot(r.exact.frequency_hz, np.abs(r.exact.H), ":", lw=0.9, color="0.35")
     if show_exact and repredictions:
         ax.plot([], [], ":", color="0.35", label="rig exact (multi-harmonic balance)")
     ax.set_xlabel("excitation frequency [Hz]")
-    ax.set_ylabel("|a_42 / F| fundamental [(m/s^2)/N]")
+    ax.set_ylabel("|a_42 / F| fundamental [(m/s²)/N]")
     if title:
         ax.set_title(title)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=6.5)
+    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncols=2, frameon=False)
+    if rms_shown:
+        from .figure_meta import mark_comparison
+
+        mark_comparison(ax, "re-predicted (harmonic balance) vs measured nonlinear FRF", "rms error")
     return ax
 
 
