@@ -46,6 +46,9 @@ def _float_in(lo, hi):
 
 EPILOG = """examples:
   jointid demo --out demo-out                # the virtual bolted-beam experiment, report.html
+#: Default output folder of ``jointid example``.
+EXAMPLE_OUT = Path("example-out")
+
   jointid example --out example-out          # the seed paper's numerical example (Tables 1-3, Figs 4-6)
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
@@ -65,6 +68,10 @@ def _add_parallel_options(p, what):
 
 def _add_identify_options(p):
     p.add_argument("--terms", default="q + -q^3 + q'",
+#: ``identify --figures``: which figures are drawn (see :func:`jointid.report.output.campaign_figures`).
+FIGURE_LEVELS = ("none", "summary", "all")
+
+
                    help="restoring-force terms, e.g. \"q + -q^3 + q'\" or eq22, or auto: the model each preload's "
                         "data select (candidate families ranked by cross-validation over the force levels and "
                         "an information criterion; docs/method.md) (default: %(default)s)")
@@ -86,8 +93,14 @@ def _add_identify_options(p):
                         "dwells' damping, with a standard error) or a known value in seconds (default: none)")
     p.add_argument("--no-reprediction", action="store_true",
                    help="skip the harmonic-balance re-prediction of the measured FRFs")
-    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
-    p.add_argument("--quiet", action="store_true", help="no progress bar and no report on stdout")
+    p.add_argument("--figures", choices=FIGURE_LEVELS, default="summary",
+                   help="PNG figures in figures/ and report.html: 'summary' the laws, re-prediction, model "
+                        "selection and backbones of each preload; 'all' also the per-record parameters and the "
+                        "hysteresis loops of every group (slower: about a second per figure); 'none' (default: "
+                        "%(default)s)")
+    p.add_argument("--no-figures", action="store_true", help="no PNG figures (the same as --figures none)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress and no report on stdout (failed and flagged records are still listed)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -112,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
                        epilog="example: jointid simulate config.toml --out camp")
     p.add_argument("config", type=Path, help="simulation configuration (see docs/formats.md)")
     p.add_argument("--out", type=Path, required=True, help="campaign folder to write")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress and no closing line on stdout")
 
     p = sub.add_parser("demo", help="the virtual bolted-beam experiment end to end, with an HTML report",
                        epilog="example: jointid demo --out demo-out")
@@ -132,17 +145,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--only", choices=("silverbox", "benchmark", "unesp", "f16"), action="append",
                    help="run only these examples (repeatable)")
 
-    p = sub.add_parser("example", help="the seed paper's numerical example: Tables 1-3 and Figs 4-6",
-                       epilog="example: jointid example --out example-out")
-    p.add_argument("--out", type=Path, default=Path("example-out"), help="output folder (default: %(default)s)")
+    p = sub.add_parser("example", help="the seed paper's numerical example: Tables 1-3 and Figs 4-6; "
+                                       "--list / --copy: the example input files that come with jointid",
+                       epilog="examples:\n  jointid example --out example-out     # the paper's numerical example\n"
+                              "  jointid example --list                 # the example input files\n"
+                              "  jointid example --copy all             # copied to ./examples/ (never overwritten)",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    files = p.add_mutually_exclusive_group()
+    files.add_argument("--out", type=Path, default=None,
+                       help=f"output folder of the numerical example (default: {EXAMPLE_OUT})")
+    files.add_argument("--list", action="store_true",
+                       help="list the example input files (simulation, import, study) and stop")
+    files.add_argument("--copy", nargs="+", metavar="NAME",
+                       help="copy these example files ('all': every one) into --to and stop; an existing file is "
+                            "not replaced (exit 2)")
+    p.add_argument("--to", type=Path, default=Path("examples"),
+                   help="folder that --copy writes to (default: %(default)s, as in the commands of the README)")
     p.add_argument("--frequencies", type=_int_in(2, 10000), default=41, help="number of excitation frequencies (default: 41)")
-    p.add_argument("--no-figures", action="store_true")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--no-figures", action="store_true", help="no PNG figures and no figures in report.html")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
     p = sub.add_parser("modal", help="FE modes, shapes and updating report of a structure description",
                        epilog="example: jointid modal campaign.toml --out modal-out --frf random.csv --response accel_42",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("structure", type=Path, help="TOML file with a [structure] table (a campaign.toml works)")
-    p.add_argument("--out", type=Path, help="folder for the mode-shape / updating / FRF figures and modal.json")
+    p.add_argument("--out", type=Path, default=Path("modal-out"),
+                   help="folder for modal.json and the mode-shape / updating / FRF figures (default: %(default)s)")
     p.add_argument("--frf", type=Path, help="a random-excitation record (CSV: time, force, responses) for H1 and a modal fit")
     p.add_argument("--response", default=None, help="response column of --frf (default: the first sensor)")
     p.add_argument("--modes", type=_int_in(1, 50), default=3, help="modes fitted in the FRF (default: %(default)s)")
@@ -158,9 +185,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="lowest median coherence of a trusted peak's band (default: %(default)s)")
 
     p = sub.add_parser("backbone", help="draw omega(a), zeta(a) of a saved identification (results.json)",
-                       epilog="example: jointid backbone res/results.json --out backbone-out")
-    p.add_argument("results", type=Path, help="results.json written by jointid identify")
-    p.add_argument("--out", type=Path, required=True, help="folder for backbone_<preload>.png")
+                       epilog="example: jointid backbone results --out backbone-out")
+    p.add_argument("results", type=Path, help="results folder written by jointid identify, or its results.json")
+    p.add_argument("--out", type=Path, default=None,
+                   help="folder for backbone_<preload>.png (default: RESULTS-backbone beside the results folder)")
     p.add_argument("--harmonics", type=_int_in(1, 50), default=1,
                    help="harmonics of the model backbone (1: first-harmonic balance; default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no table on stdout")
@@ -239,7 +267,7 @@ def _modal(args) -> int:
         summary["frf_fit"] = {"frequencies_hz": fit.frequencies_hz, "damping_ratios": fit.damping_ratios,
                               "record": str(args.frf), "channel": column, "h1": frf.summary(), **fit.summary()}
         figures.append(("frf.png", plot_frf(frf, fit=fit)[0]))
-    if args.out is not None:
+    if args.out is not None:  # (default modal-out)
         write_json(args.out / "modal.json", summary)
         for name, fig in figures:
             atomic_savefig(fig, args.out / name, dpi=120)
@@ -264,15 +292,42 @@ def _channel_delay(text):
 
 def _identify(args) -> int:
     from .report.output import write_results
+class _Stages:
+    """One line per stage of a command on stderr, with the seconds it took (nothing when quiet)."""
+
+    def __init__(self, command, quiet=False):
+        import time
+
+        self._clock, self.command, self.quiet = time.perf_counter, command, quiet
+        self.t0 = self.t = self._clock()
+
+    def __call__(self, text):
+        now = self._clock()
+        if not self.quiet:
+            print(f"jointid {self.command}: {text} [{now - self.t:.1f} s, {now - self.t0:.1f} s in all]",
+                  file=sys.stderr, flush=True)
+        self.t = now
+
+
     from .app.workflow import identify_campaign
+    stage = _Stages("identify", args.quiet)
 
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
+    stage(f"modules loaded; reading and reducing the records of {args.campaign}")
         weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency, jobs=args.jobs,
         scheduler=args.scheduler, progress=not args.quiet, keep_flagged=args.keep_flagged,
         channel_delay=_channel_delay(args.channel_delay), repredict=not args.no_reprediction,
     )
-    write_results(result, args.out, figures=not args.no_figures)
+    n_groups = sum(g.pooled is not None for g in result.groups)
+    stage(f"identified {len(result.records)} records, {n_groups} groups, {len(result.models)} preload model(s): "
+          "pooled fits, laws, adequacy, " + ("" if args.no_reprediction else "re-prediction by harmonic balance, ")
+          + "backbones")
+    level = "none" if args.no_figures else args.figures
+    write_results(result, args.out, figures={"none": False, "summary": "summary", "all": True}[level])
+    drawn = {"none": "no figures", "summary": "the figures of each preload (--figures all: also each group's)",
+             "all": "all figures"}[level]
+    stage(f"written: results.json, CSV tables, report.txt, report.html, {drawn}")
     from .report.output import flagged_lines
     from .report.summary import console_lines, error_lines
 
@@ -330,7 +385,25 @@ def _import(args) -> int:
 
 def _example(args) -> int:
     from .app.paper_example import run_paper_example
+def _example_files(args) -> int:
+    """``jointid example --list`` / ``--copy NAME... [--to DIR]``."""
+    from .examples import copy_examples, example_files
 
+    if args.list:
+        files = example_files()
+        width = max(map(len, files))
+        for name, about in files.items():
+            print(f"{name:<{width}}  {about}")
+        print(f"\njointid example --copy NAME|all [--to DIR] copies them (default folder: {args.to})")
+        return EXIT_OK
+    for path in copy_examples(args.copy, args.to):
+        print(f"copied {path}")
+    return EXIT_OK
+
+
+
+    if args.list or args.copy:
+        return _example_files(args)
     res = run_paper_example(args.out, n_frequencies=args.frequencies, figures=not args.no_figures,
                             progress=not args.quiet)
     print(res.report())
@@ -340,6 +413,28 @@ def _example(args) -> int:
 
 def _backbone(args) -> int:
     from .app.backbones import backbones_from_results, write_backbone_figures
+def _results_file(path: Path) -> Path:
+    """``backbone RESULTS``: a results folder (its results.json) or the results.json itself."""
+    from .errors import RecordFileNotFoundError
+
+    file = path / "results.json" if path.is_dir() else path
+    if not file.is_file():
+        what = f"{path}: a folder without results.json" if path.is_dir() else f"{path}: no such file or folder"
+        raise RecordFileNotFoundError(f"{what}; give the output folder of jointid identify or its results.json")
+    return file
+
+
+def _resolve_outputs(args) -> None:
+    """Defaults that depend on other arguments, set before the output folder is checked."""
+    if args.command == "example" and args.out is None and not (args.list or args.copy):
+        args.out = EXAMPLE_OUT
+    elif args.command == "backbone":
+        args.results = _results_file(args.results)
+        if args.out is None:  # beside the results folder, never inside it (that folder is one run's set)
+            folder = args.results.parent.resolve()
+            args.out = folder.parent / f"{folder.name}-backbone"
+
+
 
     bb = backbones_from_results(args.results, n_harmonics=args.harmonics)
     paths = write_backbone_figures(bb, args.out)
@@ -368,6 +463,7 @@ def main(argv=None) -> int:
         try:
             if getattr(args, "out", None) is not None:  # refuse an unwritable --out before the work
                 from .io.outputset import check_command_output
+            _resolve_outputs(args)
 
                 check_command_output(args.command, args.out, [getattr(args, k, None) for k in ("campaign", "plan", "description")])
             return COMMANDS[args.command](args)

@@ -12,7 +12,9 @@ A campaign is a folder with a manifest::
     force_level = 1.5            # grouping key
     preload = 120                # grouping key
     excitation = "stepped-sine"  # optional: "stepped-sine" (default), "multisine" (with period_s),
-                                 # "random" or "ringdown"
+                                 # "random", "ringdown" or "first-harmonic" (jointid.io.firsth:
+                                 # one line per frequency, with control = "force", "response"
+                                 # or "phase-resonance")
 
 A physical campaign has a ``[structure]`` table (see :mod:`jointid.modal.structure`), or one per
 preload: ``[structure.120]`` tables keyed by the preload label, each a structure table or
@@ -54,9 +56,11 @@ COORDINATES = ("modal", "physical")
 #: as text with few digits); the same tolerance for ``jointid import`` and ``jointid identify``.
 CSV_TIME_RTOL = 1e-2
 #: Kinds of excitation a record may declare (``excitation`` key); the first is the default.
-EXCITATIONS = ("stepped-sine", "multisine", "random", "ringdown")
+EXCITATIONS = ("stepped-sine", "multisine", "random", "ringdown", "first-harmonic")
 #: Keys of a ``[[record]]`` entry; anything else is an error naming the nearest of these.
-RECORD_KEYS = ("file", "frequency_hz", "force_level", "preload", "excitation", "period_s", "settled")
+RECORD_KEYS = ("file", "frequency_hz", "force_level", "preload", "excitation", "period_s", "settled", "control")
+#: How a first-harmonic record's test was controlled (``control`` key; jointid.io.firsth).
+CONTROLS = ("force", "response", "phase-resonance")
 #: Top-level tables of a manifest.
 MANIFEST_KEYS = ("campaign", "record", "structure")
 #: Size bounds: records per campaign, samples per record, bytes of a manifest or record file.
@@ -244,6 +248,10 @@ def _excitation(entry, ctx):
     if period is not None and (kind != "multisine" or period <= 0):
         raise ManifestError(f"{ctx}period_s must be a positive period of a multisine record, got {period!r} "
                             f"with excitation {kind!r}")
+    control = entry.get("control")
+    if control is not None and (kind != "first-harmonic" or control not in CONTROLS):
+        raise ManifestError(f"{ctx}control must be one of {list(CONTROLS)} on a first-harmonic record, got "
+                            f"{control!r} with excitation {kind!r}")
     return kind, period
 
 

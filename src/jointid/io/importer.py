@@ -41,6 +41,17 @@ Time window
     the record).  The records are written as ``records/NNNN.csv`` with ``time`` first; a record that
 cannot be read is reported and left out, the others are written.
 
+First-harmonic records
+    A record with ``excitation = "first-harmonic"`` (optionally ``control = "force"``,
+    ``"response"`` or ``"phase-resonance"``) holds one line per frequency of a stepped-sine
+    controller's export; its columns are ``frequency_hz``, ``force`` (amplitude),
+    ``force_phase`` (optional), ``accel`` (amplitude at the driving point) and
+    ``accel_phase``, or a complex ``frf`` (``frf_real`` and ``frf_imag``) with ``force``
+    (see :mod:`jointid.io.firsth`).  A MAT reference may index struct arrays anywhere
+    (``"FRdata.ForceControl[2].amplitude"``); units ``deg`` and ``hz`` convert phases and
+    frequencies.  It is written as ``records/NNNN.csv`` with the columns of
+    :data:`jointid.io.firsth.FH_COLUMNS`.
+
 The description is validated before any file is read, like a campaign manifest: UTF-8 text,
 known keys (the nearest valid name is suggested), types and values; a source path that
 leaves the data folder (``..``, an absolute path) fails its record.  CSV time stamps get the
@@ -76,7 +87,7 @@ from .outputset import output_set
 DESCRIPTION_KEYS = ("campaign", "import", "record", "structure")
 IMPORT_KEYS = ("fs", "channels", "data_folder", "time", "window_s")
 RECORD_KEYS = ("file", "source", "channels", "fs", "frequency_hz", "force_level", "preload", "excitation",
-               "period_s", "time", "window_s")
+               "period_s", "time", "window_s", "control")
 SOURCE_KEYS = ("file", "channels", "time", "fs")
 #: Keys of a column of the column map given as a table.
 COLUMN_KEYS = ("channel", "unit", "scale")
@@ -85,6 +96,7 @@ UNIT_FACTORS = {
     "": 1.0, "si": 1.0, "m": 1.0, "m/s": 1.0, "m/s^2": 1.0, "m/s2": 1.0, "n": 1.0, "v": 1.0, "s": 1.0, "rad": 1.0,
     "mm": 1e-3, "um": 1e-6, "mm/s": 1e-3, "mm/s^2": 1e-3, "g": 9.80665, "mg": 9.80665e-3, "kn": 1e3, "mn": 1e-3,
     "mv": 1e-3, "ms": 1e-3, "in": 0.0254, "in/s": 0.0254, "lbf": 4.4482216152605,
+    "hz": 1.0, "deg": np.pi / 180, "degree": np.pi / 180, "degrees": np.pi / 180,
 }
 
 __all__ = ["ImportResult", "import_campaign", "read_source"]
@@ -152,7 +164,7 @@ def read_source(path: Path, channels: dict, fs=None, time=None) -> Channels:
     if suffix == ".mat":
         from .matlab import read_mat
 
-        return read_mat(path, channels, fs=fs)
+        return read_mat(path, channels, fs=fs if time is None else None, time=time)
     if suffix in (".uff", ".unv", ".uff58"):
         from .uff import read_uff
 
@@ -335,6 +347,29 @@ def _source_path(data_folder: Path, rel: str, i: int) -> Path:
     return p
 
 
+def _import_first_harmonic(entry, i, defaults, ctx, data_folder: Path, target: Path) -> None:
+    """Read the columns of a first-harmonic record from its sources, check them, write the campaign CSV."""
+    from .firsth import first_harmonic_from_columns, read_first_harmonic_source, write_first_harmonic_csv
+
+    cols, files = {}, []
+    for f, ch, _t, _fs in _sources(entry, i, defaults, ctx):
+        names, factors = _split_map(ch)
+        got = read_first_harmonic_source(_source_path(data_folder, f, i), names)
+        for k, v in got.items():
+            v = np.asarray(v) * factors.get(k, 1.0)
+            if k == "frequency_hz" and k in cols:
+                same = np.shape(v) == np.shape(cols[k]) and np.allclose(v, cols[k], rtol=1e-9, atol=0)
+                if not same:
+                    raise RecordError(f"{where(f, i, k)}the sources of a record are on different frequency lines")
+                continue
+            if k in cols:
+                raise RecordError(f"{where(f, i, k)}column given by two sources of the record")
+            cols[k] = v
+        files.append(f)
+    rec = first_harmonic_from_columns(cols, " + ".join(files), i, entry.get("control", "force"))
+    write_first_harmonic_csv(target, rec)
+
+
 def import_campaign(description, out_dir) -> ImportResult:
     """Write the campaign described by ``description`` (a TOML file) into ``out_dir``.
 
@@ -357,6 +392,19 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out):
     ctx = f"{desc} "
     entries, written, failed = [], [], []
     for i, entry in enumerate(records):
+        if entry.get("excitation") == "first-harmonic":
+            try:
+                rel = f"records/{len(written):04d}.csv"
+                _import_first_harmonic(entry, i, defaults, ctx, data_folder, out / rel)
+            except ManifestError:
+                raise
+            except JointidError as exc:
+                failed.append((i, str(exc)))
+                continue
+            keys = {k: v for k, v in entry.items() if k in ("force_level", "preload", "excitation", "control")}
+            entries.append({"file": rel, **keys})
+            written.append((i, rel))
+            continue
         try:
             parts = []
             for f, ch, t_name, s_fs in _sources(entry, i, defaults, ctx):

@@ -24,6 +24,7 @@ from ..io.results import atomic_write, write_csv, write_json
 from .formatting import format_pm, format_value, unit_of
 from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
+from .summary import Z95
 from .tables import group_rows, record_rows
 
 __all__ = ["write_results", "campaign_figures", "campaign_sections", "slug", "tex_safe", "check_output_folder",
@@ -69,6 +70,8 @@ def tex_safe(value, max_length=60) -> str:
 def write_results(result, out_dir, figures=True, html=True) -> dict:
     """Write ``results.json``, ``records.csv``, ``groups.csv``, ``damping_laws.csv``,
     ``report.txt``, PNG figures and a self-contained ``report.html``, as one set.
+    ``figures="summary"`` draws the figures of each preload only (``per_group=False`` of
+    :func:`campaign_figures`), ``False`` none.
 
     The set replaces ``out_dir`` as a whole once complete (see :func:`output_set`);
     ``results.json`` gets the run id under ``run_id``.
@@ -118,7 +121,7 @@ def _write_set(result, out, run_id, figures, html) -> dict:
     paths["damping_laws"] = write_csv(out / "damping_laws.csv", law_rows, cols)
     # each figure is rendered once; the same PNG bytes are written and embedded
     # each figure is drawn once (PNG file and HTML); --no-figures skips them in both
-    figs = [(n, c, figure_to_png(f, dpi=120)) for n, c, f in campaign_figures(result)] if figures else []
+    figs = [(n, c, figure_to_png(f, dpi=120)) for n, c, f in campaign_figures(result, per_group=figures != "summary")] if figures else []
     if figures:
         paths["figures"] = [atomic_write(out / "figures" / name, png) for name, _, png in figs]
     if html:
@@ -325,10 +328,11 @@ def _delay_text(delay) -> str:
 MAX_FIGURES = 60
 
 
-def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
+def campaign_figures(result, max_figures=MAX_FIGURES, per_group=True) -> list:
     """``(file name, caption, figure)`` of the damping laws, power laws, per-record
     parameters and hysteresis loops (filtered and unfiltered) of a campaign result;
-    at most ``max_figures`` (preload by preload, group by group)."""
+    at most ``max_figures`` (preload by preload, group by group).  ``per_group=False``
+    leaves out the two figures of each group (per-record parameters, hysteresis loops)."""
     written = []
     preloads = list(result.damping_laws)
     for p in preloads:
@@ -349,7 +353,7 @@ def campaign_figures(result, max_figures=MAX_FIGURES) -> list:
                 plot_power_law(g.power_law, ax=ax, label=f"F = {tex_safe(g.force_level)}", gain_free=gain_free)
             ax.set_title(f"energy per cycle, preload {tex_safe(p)}")
             written.append((f"power_law_{slug(p)}.png", f"energy per cycle vs joint force, preload {p}", ax.figure))
-        for g in groups:
+        for g in groups if per_group else ():
             if len(written) + 2 > max_figures:
                 break
             indices = set(g.record_indices)
