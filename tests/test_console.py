@@ -48,7 +48,7 @@ def test_identify_prints_band_average_as_such_and_warnings_per_group(campaign, t
     band = [line for line in out.splitlines() if "band average" in line and "preload 120" in line]
     assert len(band) == 1 and "N/m³" in band[0] and "±" in band[0]
     warn = [line for line in out.splitlines() if " x k3 not resolved by the data" in line]
-    assert len(warn) == 1 and warn[0].strip().startswith("preload 120, F 1:")  # one line per group and kind
+    assert len(warn) == 1 and warn[0].strip().startswith("preload 120, F = 1 N:")  # one line per group and kind
 
 
 def test_repeated_errors_are_one_line_with_a_count_even_when_quiet(broken, tmp_path, capsys):

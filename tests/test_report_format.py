@@ -15,6 +15,7 @@ from jointid.report.summary import (
     group_messages,
     message_kind,
     model_rows,
+    selection_rows,
     summary_lines,
     table5_rows,
     warning_rows,
@@ -147,5 +148,6 @@ def test_adequacy_and_selection_shown_in_any_shape():
     rows = adequacy_rows({"adequacy": [{"preload": 120, "adequate": False, "verdict": "residual not white",
                                         "p_value": 0.001}],
                           "selection": {"120": {"selected": "q + -q^3 + q'", "aic": 12.0}}})
-    assert rows[0]["verdict"] == "residual not white" and "p_value" in rows[0]["details"]
-    assert rows[1]["preload"] == "120" and rows[1]["verdict"] == "q + -q^3 + q'"
+    assert rows[0]["verdict"] == "does not hold: residual not white" and "p_value = 0.001" in rows[0]["other"]
+    (sel,) = selection_rows({"selection": {"120": {"selected": "q + -q^3 + q'", "aic": 12.0}}})
+    assert sel["preload"] == "120" and sel["selected model"] == "q + -q^3 + q'"

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..identify.hysteresis import hysteresis_loop
 from ..io.results import atomic_write
+from .formatting import format_percent, format_pm, format_value
 from .html import Section, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_power_law
 from .rig_plots import (
@@ -456,42 +457,32 @@ def demo_sections(demo, figs) -> list:
 
 
 def demo_summary_section(demo) -> Section:
-    """The demo's summary: each preload's identified model with 95 % intervals against the rig,
-    the paper's Tables 4 and 5 in the paper's units, and the verdicts (when present)."""
-    from .summary import adequacy_rows, error_lines, model_rows, table5_rows, warning_rows
+    """The demo's summary: which model to believe and why, the model the data select for each
+    preload with 95 % intervals, the paper's cubic beside it, the paper's Tables 4 and 5 in the
+    paper's units, and the adequacy and selection verdicts."""
+    from .summary import error_lines, lead_tables, warning_rows
 
-    merged = {"models": [], "groups": [], "records": [], "adequacy": [], "selection": []}
-    for pr in demo.preloads:
-        s = pr.result.summary()
-        for key in merged:
-            part = s.get(key) or []
-            merged[key] += part if isinstance(part, list) else [part]
-    sec = Section("Summary", [
-        "The identified single-mode model of each preload (one regression over all its records, the damping law "
-        "inside), then the seed paper's Table 4 and Table 5 quantities in its units. Modal quantities of the "
-        "mass-normalised first mode (k3 in N/m³ and c in N s/m for one kg of modal mass, i.e. 1/(m² s²) and 1/s per "
-        "unit modal mass); values rounded to two significant digits of their standard error."])
-    sec.tables.append(("Identified model per preload (value ± standard error, 95 % interval)",
-                       model_rows(merged), None))
+    summaries = [pr.result.summary() for pr in demo.preloads]  # one per campaign: record indices are per campaign
+    choice, tables = lead_tables(summaries)
+    sec = Section("Summary", choice + [
+        "Modal quantities of the mass-normalised first mode (k3 in N/m³ and c in N s/m for one kg of modal mass, "
+        "i.e. 1/(m² s²) and 1/s per unit modal mass); values rounded to two significant digits of their standard "
+        "error."])
     t4 = []
     for pr in demo.preloads:
         f = float(pr.modal_fit.frequencies_hz[0])
-        t4.append({"preload [N]": pr.preload, "f1 measured [Hz]": f"{f:.3f}", "omega1 measured [rad/s]":
-                   f"{2 * np.pi * f:.2f}", "f1 rig [Hz]": f"{float(pr.rig.linear_frequencies_hz[0]):.3f}",
-                   "f2, f3 measured [Hz]": ", ".join(f"{v:.1f}" for v in pr.modal_fit.frequencies_hz[1:3])})
-    sec.tables.append(("Table 4: linear natural frequencies (random test, H1 modal fit)", t4, None))
-    sec.tables.append(("Table 5: pooled fit per force level and the band average of single-record k3 (the paper's "
-                       "number), flagged where unresolved", table5_rows(merged), None))
-    verdicts = adequacy_rows(merged)
-    if verdicts:
-        sec.tables.append(("Model adequacy and selection", verdicts, None))
-    else:
-        sec.paragraphs.append("No model adequacy verdict in these results.")
-    w = warning_rows(merged)
+        t4.append({"preload [N]": pr.preload, "f1 measured [Hz]": format_value(f, 5),
+                   "omega1 measured [rad/s]": format_value(2 * np.pi * f, 5),
+                   "f1 rig [Hz]": format_value(float(pr.rig.linear_frequencies_hz[0]), 5),
+                   "f2, f3 measured [Hz]": ", ".join(format_value(v, 4) for v in pr.modal_fit.frequencies_hz[1:3])})
+    at = next(i for i, t in enumerate(tables) if t[0].startswith("The paper's Table 5"))
+    sec.tables += tables[:at] + [("Table 4: linear natural frequencies (random test, H1 modal fit)", t4, None)]
+    sec.tables += tables[at:]
+    w = [row for s_ in summaries for row in warning_rows(s_)]
     n_flag = sum(len(pr.result.flagged) for pr in demo.preloads)
     sec.paragraphs.append(f"{sum(len(pr.result.failed) for pr in demo.preloads)} failed and {n_flag} flagged records"
                           + (f"; {sum(r['records'] for r in w)} record warnings (kinds per group below)" if w else ""))
-    sec.paragraphs += error_lines(merged)
+    sec.paragraphs += [line for s_ in summaries for line in error_lines(s_)]
     if w:
         sec.tables.append(("record warnings per group", w, None))
     return sec

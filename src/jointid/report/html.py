@@ -11,10 +11,8 @@ import html
 import io
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from ..io.results import atomic_write
-from .formatting import format_value
+from .formatting import html_table
 
 __all__ = ["Section", "render_html", "write_html", "figure_to_data_uri", "figure_to_png", "page_meta"]
 
@@ -60,27 +58,8 @@ def figure_to_data_uri(fig, dpi=110) -> str:
     return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
-def _cell(v) -> str:
-    if isinstance(v, (bool, np.bool_, int, np.integer, float, np.floating)) or v is None:
-        return html.escape(format_value(v, 5))
-    return html.escape(str(v))
-
-
 def _table(caption, rows, columns=None) -> str:
-    if not rows:
-        return f"<p class='note'>{html.escape(caption)}: no rows</p>"
-    columns = columns or list(rows[0])
-    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in columns)
-    body = []
-    for r in rows:
-        cells = []
-        for c in columns:
-            v = r.get(c)
-            cls = " class='text'" if isinstance(v, str) else ""
-            cells.append(f"<td{cls}>{_cell(v)}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return (f"<table><caption>{html.escape(caption)}</caption><thead><tr>{head}</tr></thead>"
-            f"<tbody>{''.join(body)}</tbody></table>")
+    return html_table(rows, columns, caption=caption, css_class=None, empty="no rows")
 
 
 def page_meta(run_id=None) -> dict:

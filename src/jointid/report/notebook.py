@@ -16,7 +16,8 @@ from .formatting import format_ci, format_pm, format_value, html_table, unit_of
 __all__ = ["result_html", "coefficient_rows"]
 
 _STYLE = ("<style>table.jointid{border-collapse:collapse;margin:.4em 0}table.jointid td,table.jointid th"
-          "{border:1px solid #ccc;padding:.15em .5em}table.jointid caption{text-align:left;font-weight:600}</style>")
+          "{border:1px solid #ccc;padding:.15em .5em;text-align:right}table.jointid td.text{text-align:left}"
+          "table.jointid caption{text-align:left;font-weight:600}</style>")
 
 
 def _unit(name):
