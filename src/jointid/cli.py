@@ -44,11 +44,11 @@ def _float_in(lo, hi):
         return value
     return parse
 
-EPILOG = """examples:
-  jointid demo --out demo-out                # the virtual bolted-beam experiment, report.html
 #: Default output folder of ``jointid example``.
 EXAMPLE_OUT = Path("example-out")
 
+EPILOG = """examples:
+  jointid demo --out demo-out                # the virtual bolted-beam experiment, report.html
   jointid example --out example-out          # the seed paper's numerical example (Tables 1-3, Figs 4-6)
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
@@ -66,12 +66,12 @@ def _add_parallel_options(p, what):
                    help=f"run the {what} on an existing dask cluster, e.g. tcp://10.0.0.5:8786 (see docs/scale-out.md)")
 
 
-def _add_identify_options(p):
-    p.add_argument("--terms", default="q + -q^3 + q'",
 #: ``identify --figures``: which figures are drawn (see :func:`jointid.report.output.campaign_figures`).
 FIGURE_LEVELS = ("none", "summary", "all")
 
 
+def _add_identify_options(p):
+    p.add_argument("--terms", default="q + -q^3 + q'",
                    help="restoring-force terms, e.g. \"q + -q^3 + q'\" or eq22, or auto: the model each preload's "
                         "data select (candidate families ranked by cross-validation over the force levels and "
                         "an information criterion; docs/method.md) (default: %(default)s)")
@@ -290,8 +290,6 @@ def _channel_delay(text):
     return value
 
 
-def _identify(args) -> int:
-    from .report.output import write_results
 class _Stages:
     """One line per stage of a command on stderr, with the seconds it took (nothing when quiet)."""
 
@@ -309,12 +307,14 @@ class _Stages:
         self.t = now
 
 
-    from .app.workflow import identify_campaign
+def _identify(args) -> int:
     stage = _Stages("identify", args.quiet)
+    from .report.output import write_results
+    from .app.workflow import identify_campaign
 
+    stage(f"modules loaded; reading and reducing the records of {args.campaign}")
     result = identify_campaign(
         args.campaign, terms=args.terms, n_harmonics=args.harmonics, damping_order=args.damping_order,
-    stage(f"modules loaded; reading and reducing the records of {args.campaign}")
         weighting=args.weighting, force_gain=args.force_gain, refine_frequency=not args.trust_frequency, jobs=args.jobs,
         scheduler=args.scheduler, progress=not args.quiet, keep_flagged=args.keep_flagged,
         channel_delay=_channel_delay(args.channel_delay), repredict=not args.no_reprediction,
@@ -383,8 +383,6 @@ def _import(args) -> int:
     return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
-def _example(args) -> int:
-    from .app.paper_example import run_paper_example
 def _example_files(args) -> int:
     """``jointid example --list`` / ``--copy NAME... [--to DIR]``."""
     from .examples import copy_examples, example_files
@@ -401,9 +399,11 @@ def _example_files(args) -> int:
     return EXIT_OK
 
 
-
+def _example(args) -> int:
     if args.list or args.copy:
         return _example_files(args)
+    from .app.paper_example import run_paper_example
+
     res = run_paper_example(args.out, n_frequencies=args.frequencies, figures=not args.no_figures,
                             progress=not args.quiet)
     print(res.report())
@@ -411,8 +411,6 @@ def _example_files(args) -> int:
     return EXIT_PARTIAL if res.eq21.failed else EXIT_OK
 
 
-def _backbone(args) -> int:
-    from .app.backbones import backbones_from_results, write_backbone_figures
 def _results_file(path: Path) -> Path:
     """``backbone RESULTS``: a results folder (its results.json) or the results.json itself."""
     from .errors import RecordFileNotFoundError
@@ -435,6 +433,8 @@ def _resolve_outputs(args) -> None:
             args.out = folder.parent / f"{folder.name}-backbone"
 
 
+def _backbone(args) -> int:
+    from .app.backbones import backbones_from_results, write_backbone_figures
 
     bb = backbones_from_results(args.results, n_harmonics=args.harmonics)
     paths = write_backbone_figures(bb, args.out)
@@ -461,9 +461,9 @@ def main(argv=None) -> int:
         if getattr(args, "quiet", False) or args.command in ("identify", "example", "demo"):
             warnings.simplefilter("ignore", JointidWarning)
         try:
+            _resolve_outputs(args)
             if getattr(args, "out", None) is not None:  # refuse an unwritable --out before the work
                 from .io.outputset import check_command_output
-            _resolve_outputs(args)
 
                 check_command_output(args.command, args.out, [getattr(args, k, None) for k in ("campaign", "plan", "description")])
             return COMMANDS[args.command](args)

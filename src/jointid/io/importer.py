@@ -11,7 +11,9 @@ channels become which campaign columns::
     fs = 1024.0                     # for plain MAT arrays without a time vector
     channels = { force = "Time_Shaker__X", accel = "Time_Laser__X" }
     data_folder = "../data/unesp"   # optional: where the source files are (default: the
-                                    # description's folder); relative to the description
+                                    # description's folder); relative to the description, or
+                                    # "shared:unesp_bolted_beam/T5Nm": below the shared data
+                                    # folder ($JOINTID_SHARED_DATA, jointid.io.datasets)
 
     [[record]]
     frequency_hz = 17.0             # optional, as in a campaign
@@ -65,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import JointidError, ManifestError, RecordError, where
+from ..errors import JointidError, ManifestError, RecordError, RecordFileNotFoundError, where
 from .campaign import (
     COORDINATES,
     CSV_TIME_RTOL,
@@ -85,6 +87,8 @@ from .outputset import output_set
 
 #: Keys of an import description, of its ``[import]`` table, of a record and of a source.
 DESCRIPTION_KEYS = ("campaign", "import", "record", "structure")
+#: ``[import] data_folder`` starting with this is below the shared data folder.
+SHARED_PREFIX = "shared:"
 IMPORT_KEYS = ("fs", "channels", "data_folder", "time", "window_s")
 RECORD_KEYS = ("file", "source", "channels", "fs", "frequency_hz", "force_level", "preload", "excitation",
                "period_s", "time", "window_s", "control")
@@ -309,7 +313,15 @@ def _validate(d: dict, desc: Path):
     folder = imp.get("data_folder", ".")
     if not isinstance(folder, str) or not folder:
         raise ManifestError(f"{desc}: [import] data_folder must be a folder name, got {folder!r}")
-    data_folder = (desc.parent / folder).resolve()
+    if folder.startswith(SHARED_PREFIX):  # below the shared public data (jointid.io.datasets)
+        from .datasets import shared_data_dir
+
+        try:
+            data_folder = (shared_data_dir() / folder[len(SHARED_PREFIX):]).resolve()
+        except RecordFileNotFoundError as exc:
+            raise ManifestError(f"{desc}: [import] data_folder {folder!r}: {exc}") from None
+    else:
+        data_folder = (desc.parent / folder).resolve()
     if not data_folder.is_dir():
         raise ManifestError(f"{desc}: [import] data_folder {str(data_folder)!r} is not a folder")
     records = d.get("record", [])

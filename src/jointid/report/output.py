@@ -21,7 +21,7 @@ import numpy as np
 from ..identify.hysteresis import hysteresis_loop
 from ..io.outputset import MARKER, check_output_folder, new_run_id, output_set
 from ..io.results import atomic_write, write_csv, write_json
-from .formatting import format_pm, format_value, unit_of
+from .formatting import format_ci, format_estimate, format_percent, format_pm, format_value, unit_of
 from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
 from .summary import Z95
