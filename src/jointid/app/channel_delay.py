@@ -17,9 +17,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import IdentificationError, JointidWarning
-from ..identify.delay import ChannelDelay, ChannelDelayEstimator, shift_response
+from ..identify.delay import (ChannelDelay, ChannelDelayEstimator, check_delay_plausible, delay_c_stderr,
+                              delay_refusal, shift_response)
 from ..identify.fsm import ForceStateMapping, PooledForceStateMapping
 from ..identify.gain import PooledGainForceStateMapping
+from ..signal.checks import Z_LIMIT, Flag
 
 __all__ = ["correct_channel_delay"]
 
@@ -96,8 +98,12 @@ def correct_channel_delay(outcomes, settings, use=None):
         except IdentificationError as exc:
             return outcomes, None, str(exc)
         delay = est.result_
+        refused = delay_refusal(delay)
+        if refused:
+            return outcomes, None, refused
     else:
         delay = ChannelDelay(float(mode), 0.0, source="given")
+    _check_plausible(outcomes, delay)
     fixed = []
     for o in outcomes:
         if not o.ok:
@@ -114,7 +120,74 @@ def correct_channel_delay(outcomes, settings, use=None):
         if any(f.name == DELAY_FLAG for f in flags) and _input_power(sig) > 0:
             changes["flags"] = tuple(f for f in flags if f.name != DELAY_FLAG)  # explained by the delay
         fixed.append(replace(o, **changes))
-    return fixed, delay, None
+    return _passive_flags(outcomes, _with_delay_stderr(fixed, delay), delay), delay, None
+
+
+def _check_plausible(outcomes, delay) -> None:
+    """Refuse a delay longer than a fraction of the dwells' period or records (IdentificationError)."""
+    ok = [o for o in outcomes if o.ok]
+    freqs = [o.signals.frequency_hz for o in ok]
+    durations = [o.signals.n_periods / o.signals.frequency_hz for o in ok]
+    check_delay_plausible(delay.delay_s, freqs, durations, source=delay.source)
+
+
+def _with_delay_stderr(outcomes, delay):
+    """The estimated delay's standard error carried into each corrected record's damping ``c``."""
+    if delay.source != "estimated" or not delay.stderr_s > 0:
+        return outcomes
+    out = []
+    for o in outcomes:
+        fit = getattr(o, "fit", None)
+        names = tuple(getattr(fit, "coefficient_names", ()))
+        if not o.ok or "c" not in names or not np.isfinite(fit.omega1):
+            out.append(o)
+            continue
+        j = names.index("c")
+        extra = float(delay_c_stderr(delay, fit.omega1, o.signals.omega))
+        stderr = np.array(fit.stderr, float)
+        stderr[j] = float(np.hypot(stderr[j], extra))
+        cov = None
+        if fit.covariance is not None:
+            cov = np.array(fit.covariance, float)
+            cov[j, j] += extra**2
+        out.append(replace(o, fit=replace(fit, stderr=stderr, covariance=cov)))
+    return out
+
+
+#: Flags of a record whose damping is negative after a channel-delay correction.
+NEGATIVE_DAMPING = "negative_damping"
+DELAY_IMPLAUSIBLE = "channel_delay_implausible"
+_SIGN_FLAGS = (DELAY_FLAG, "channel_swap")
+
+
+def _passive_flags(before, after, delay):
+    """Flag records whose corrected damping is negative beyond its noise (a passive joint dissipates).
+
+    Each such record gets ``negative_damping``; when the correction turned a record's damping negative
+    that had no sign flag before it, the delay itself is implausible for the campaign and every
+    corrected record gets ``channel_delay_implausible`` (the delay is one number for all of them).
+    """
+    after = list(after)
+    caused = 0
+    for i, (old, o) in enumerate(zip(before, after)):
+        c = getattr(getattr(o, "fit", None), "c", None) if o.ok else None
+        se = getattr(o.fit, "c_stderr", None) if c is not None else None
+        if c is None or se is None or not np.isfinite(c) or not (c < 0 and -c > Z_LIMIT * max(se, 0.0)):
+            continue
+        f = Flag(NEGATIVE_DAMPING, f"damping c = {c:.4g} ± {se:.2g} after the channel-delay correction of "
+                                   f"{1e3 * delay.delay_s:.4g} ms ({delay.source}): negative, and a passive joint "
+                                   "dissipates", {"c": c, "c_stderr": se, "delay_s": delay.delay_s})
+        after[i] = replace(o, flags=tuple(o.flags) + (f,))
+        if not any(g.name in _SIGN_FLAGS for g in getattr(old, "flags", ())):
+            caused += 1
+    if caused:
+        n_ok = sum(o.ok for o in after)
+        f = Flag(DELAY_IMPLAUSIBLE, f"the channel delay {1e3 * delay.delay_s:.4g} ms ({delay.source}) makes the "
+                                    f"damping negative at {caused} of {n_ok} records that were not negative "
+                                    "without it: the delay does not fit these data",
+                 {"delay_s": delay.delay_s, "records_negative": caused, "records": n_ok})
+        after = [replace(o, flags=tuple(o.flags) + (f,)) if o.ok else o for o in after]
+    return after
 
 
 def _input_power(signals) -> float:

