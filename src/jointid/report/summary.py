@@ -245,9 +245,12 @@ def model_choice_lines(summary) -> list:
         if chosen is None:
             if adq is None:
                 continue
-            state = "holds" if holds else "does not hold" if holds is False else "was not assessed"
-            out.append(f"Preload {p}: {fitted} {state} by the adequacy checks ({verdict}); no other model was "
-                       "ranked (identify --terms auto ranks the candidates).")
+            if holds is None:
+                out.append(f"Preload {p}: {fitted}, {verdict}.")
+                continue
+            state = "passes the adequacy checks" if holds else f"does not hold ({verdict})"
+            out.append(f"Preload {p}: {fitted} {state}; no other model was ranked (identify --terms auto ranks the "
+                       "candidates).")
             continue
         name = str(chosen.get("name"))
         crit = str(sel.get("criterion") or "ic").upper()

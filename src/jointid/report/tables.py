@@ -2,28 +2,24 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
+
+from .formatting import format_estimate, format_percent, format_value, text_table
 
 __all__ = ["format_table", "campaign_report", "record_rows", "group_rows"]
 
 
 def format_table(rows, columns, headers=None, floatfmt=".6g") -> str:
-    """Fixed-width text table of ``rows`` (dicts) restricted to ``columns``."""
-    headers = headers or columns
-
-    def cell(v):
-        if v is None:
-            return "-"
-        if isinstance(v, (float, np.floating)):
-            return "nan" if not np.isfinite(v) else format(float(v), floatfmt)
-        return str(v)
-
-    body = [[cell(r.get(c)) for c in columns] for r in rows]
-    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(headers)]
-    line = "  ".join(h.rjust(w) for h, w in zip(headers, widths))
-    out = [line, "  ".join("-" * w for w in widths)]
-    out += ["  ".join(b[i].rjust(widths[i]) for i in range(len(widths))) for b in body]
-    return "\n".join(out)
+    """Fixed-width text table of ``rows`` (dicts) restricted to ``columns``; numbers go through
+    :func:`~jointid.report.formatting.format_value` with the significant digits of ``floatfmt``
+    (``".6g"``: six)."""
+    m = re.fullmatch(r"\.(\d+)[gGeEf]", str(floatfmt))
+    digits = int(m.group(1)) if m else 6
+    shown = [{c: (format_value(r.get(c), digits) if isinstance(r.get(c), (float, np.floating)) else r.get(c))
+              for c in columns} for r in rows]
+    return text_table(shown, columns, headers)
 
 
 def record_rows(result) -> list[dict]:
@@ -75,74 +71,83 @@ def group_rows(result) -> list[dict]:
     return rows
 
 
-def _pm(value, stderr) -> str:
-    """``value ± stderr [lo, hi]`` with the normal 95 % interval."""
-    from ..identify.uncertainty import ci95
-
-    ci = ci95(value, stderr)
-    if ci is None:
-        return f"{value:.8g}" if value is not None else "-"
-    return f"{value:.8g} ± {stderr:.2g} [{ci[0]:.8g}, {ci[1]:.8g}]"
-
-
-def _per_preload(title, results, errors) -> list:
-    """A titled section: each preload's result report, indented, or its error."""
-    lines = [title]
-    for p, r in results.items():
-        lines.append("  " + (r.report().replace("\n", "\n  ") if r is not None else errors.get(p, "-")))
-    return lines + [""]
+def _indent(lines) -> list:
+    return ["  " + line for line in lines]
 
 
 def campaign_report(result) -> str:
-    """Text report: groups (Table 5 analogue), damping laws (Table 2), power laws, failures."""
+    """Text report (console, ``report.txt``): which model to believe, the selected and the
+    preload model with 95 % intervals, the force gain when identified, adequacy and selection,
+    the paper's Table 5 per group, damping laws (Table 2), power laws, re-predictions,
+    failures.  Every number goes through :mod:`jointid.report.formatting`."""
+    from .output import _delay_text, _law_rows, _power_rows
+    from .summary import adequacy_rows, lead_lines, run_units, selection_rows, table5_rows
+
+    summary = result.summary()
+    units = run_units(summary)
+    Fu, (k3n, k3u) = units["F"][1], units["k3"]
     out = [f"campaign {result.name!r}: {len(result.records)} records, {len(result.failed)} failed",
            f"terms: {' + '.join(result.settings.summary()['terms'])}, "
-           f"{result.settings.n_harmonics} harmonics, damping law order {result.settings.damping_order}", ""]
-    models = getattr(result, "models", {}) or {}
-    if models:
-        out += _per_preload("Preload models: one regression over all records of a preload, damping law inside "
-                            "(value ± standard error, 95 % interval)", models, result.model_errors)
-    sels = getattr(result, "selections", None) or {}
-    if sels or getattr(result, "selection_errors", None):
-        out += _per_preload("Model selection per preload (--terms auto; * selected: the simplest model within "
-                            "noise of the best):", sels, result.selection_errors)
-    adq = getattr(result, "adequacy", None) or {}
+           f"{result.settings.n_harmonics} harmonics, damping law order {result.settings.damping_order}"
+           + ("; force gain unknown: force levels in V, k3/m and c/m per unit modal mass" if Fu == "V" else ""), ""]
+    out += lead_lines(summary) + [""]
+    adq = adequacy_rows(summary)
     if adq:
-        out += _per_preload("Model adequacy per preload (equality of the shared parameters across force levels, "
-                            "records against the preload model, explained fractions):", adq, result.adequacy_errors)
+        out.append("Model adequacy per preload:")
+        for r in adq:
+            out.append(f"  preload {r['preload']}, {r['model']}: {r['verdict']}")
+            if r.get("equality across force levels", "–") != "–":
+                out.append(f"    equality across force levels: {r['equality across force levels']}; median record "
+                           f"misfit {r['median record misfit [× noise]']} x the noise; restoring force explained "
+                           f"{r['restoring force explained [%] (lowest record)']} %")
+                out.append("    harmonics above the first: residual / measured energy "
+                           f"{r['harmonics above the first: residual / measured energy [1] (worst record)']} "
+                           "(0 = explained, 1 = as if left out), residual / noise "
+                           f"{r['harmonics above the first: residual / noise [1]']} (1 = explained to the noise)")
+        out.append("")
+    sels = selection_rows(summary)
+    if sels:
+        out.append("Model selection per preload:")
+        out += [f"  preload {r['preload']}: {r['selected model']} ({r['terms']}, {r['parameters']} parameters, "
+                f"{r['records']} records); " + "; ".join(f"{k} {v}" for k, v in r.items() if k.startswith("the paper"))
+                for r in sels]
+        out.append("")
     from .backbone_plots import backbone_report_lines
 
     out += backbone_report_lines(result)
-    out.append("Groups (the paper's method, Table 5): pooled regression per force level (shared omega1, k3; "
-               "one c per record) and band average")
-    out.append(
-        format_table(
-            group_rows(result),
-            ["preload", "force_level", "n_records", "f1_hz", "k3", "k3_stderr", "f1_hz_mean", "k3_mean", "n"],
-            ["preload", "F", "records", "f1 [Hz]", "k3 [N/m^3]", "se(k3)", "f1 band avg", "k3 band avg*", "n (U~F^n)"],
-        )
-    )
-    for g in result.groups:
-        pf = g.pooled
-        if pf is None or not np.isfinite(pf.omega1):
+    t5 = table5_rows(summary)
+    if t5:
+        out.append(f"Groups (the paper's method, Table 5): pooled regression per force level (shared omega1, {k3n}; "
+                   "one c per record) and band average (value ± standard error)")
+        cols = [c for c in t5[0] if c != "band average"]
+        out.append(text_table(t5, cols))
+    for g in summary.get("groups") or []:
+        if g.get("omega1") is None:
             continue
-        txt = f"  preload {g.preload}, F {g.force_level}: omega1 = {_pm(pf.omega1, pf.omega1_stderr)} rad/s"
-        if "k3" in pf.shared_names:
-            txt += f", k3 = {_pm(pf.k3, pf.get_stderr('k3'))}"
+        txt = (f"  preload {g.get('preload')}, F = {format_value(g.get('force_level'))} {Fu}: omega1 = "
+               f"{format_estimate(g['omega1'], g.get('omega1_stderr'), 'rad/s')}")
+        if g.get("k3") is not None:
+            txt += f"; {k3n} = {format_estimate(g['k3'], g.get('k3_stderr'), k3u)}"
         out.append(txt)
     out.append("")
-    out.append("Damping laws c(q_max) (the paper's two-step method: polynomial fitted to the pooled per-record c):")
-    for p, law in result.damping_laws.items():
-        out.append(f"  preload {p}: " + (law.report() if law is not None else result.damping_law_errors.get(p, "-")))
-    out.append("")
-    out.append("Power laws of the dissipated energy per cycle:")
-    for g in result.groups:
-        txt = g.power_law.report() if g.power_law else (g.power_law_error or "-")
-        out.append(f"  preload {g.preload}, F {g.force_level}: {txt}")
-    delay = getattr(result, "channel_delay", None)
-    if delay is not None:
+    laws = _law_rows(summary)
+    if laws:
+        out.append("Damping laws c(q_max) (the paper's two-step method: polynomial fitted to the pooled per-record c):")
+        for r in laws:
+            out.append(f"  preload {r['preload']}: {r['coefficient']} = {r['value ± standard error']} {r['unit']}"
+                       + (f"  95 % {r['95 % interval']}" if r["95 % interval"] not in ("–", "") else "")
+                       + (f"  ({r['note']})" if r["note"] else "") + (f"  [{r['fit']}]" if r["fit"] else ""))
         out.append("")
-        out.append(f"Records corrected by the {delay.report()}")
+    power = _power_rows(summary)
+    if power:
+        out.append("Power laws U = alpha F^n of the dissipated energy per cycle:")
+        for r in power:
+            a_key = next(k for k in r if k.startswith("alpha"))
+            out.append(f"  preload {r['preload']}, F = {r[f'F [{Fu}]']} {Fu}: {a_key.split(' ', 1)[0]} = {r[a_key]} "
+                       f"{a_key.split('[', 1)[1][:-1]}, n = {r['n ± standard error [1]']} ({r['records']} records)")
+    delay = summary.get("channel_delay") or {}
+    if delay.get("delay_s") is not None or delay.get("error"):
+        out += ["", "Records corrected by the " + _delay_text(delay)]
     broadband = getattr(result, "broadband", ())
     if broadband:
         out.append("")
@@ -156,8 +161,9 @@ def campaign_report(result) -> str:
     for row in getattr(result, "loops", ()):
         d = row.get("filtered") or {}
         if "rms_difference" in d:
-            out.append(f"  loops, preload {row['preload']}, F {row['force_level']} ({row['file']}): measured vs "
-                       f"identified rms difference {100 * d['rms_difference']:.1f} % (filtered)")
+            out.append(f"  loops, preload {row['preload']}, F = {format_value(row['force_level'])} {Fu} ({row['file']}): "
+                       f"measured vs identified rms difference {format_percent(100 * d['rms_difference'], 2)} "
+                       "(filtered)")
     if result.failed:
         out.append("")
         out.append(f"Failed records ({len(result.failed)}; each error in results.json):")
