@@ -3,7 +3,9 @@
 A document is followed from the top in a fresh folder: a ```toml block whose first line is
 ``# file: NAME`` is written to NAME, and each ``jointid ...`` line of a shell block runs (the
 package installation and the test-suite commands of the README are the ones not run here).
-``examples/`` of the repository is linked into the folder, as in a checkout.
+``examples/`` of the repository is linked into the folder, as in a checkout, unless the
+document copies the packaged examples itself (``jointid example --copy``, as the README does);
+a command already run with the same arguments (the README's demo) is not run again.
 
 The default run checks, fast, that every command parses with the current command line and
 every file shown loads with its reader; the slow run executes the documents.
@@ -110,9 +112,11 @@ def test_every_command_of_the_document_runs(doc, tmp_path, monkeypatch, capsys):
     todo = steps(doc)
     if not todo:
         pytest.skip(f"{doc.name} shows no command")
-    (tmp_path / "examples").symlink_to(REPO / "examples", target_is_directory=True)
+    copies = any(s[0] == "run" and s[1][:2] == ["example", "--copy"] for s in todo)
+    if not copies:
+        (tmp_path / "examples").symlink_to(REPO / "examples", target_is_directory=True)
     monkeypatch.chdir(tmp_path)
-    ran = 0
+    ran, done = 0, set()
     for step in todo:
         if step[0] == "file":
             path = tmp_path / step[1]
@@ -120,8 +124,9 @@ def test_every_command_of_the_document_runs(doc, tmp_path, monkeypatch, capsys):
             path.write_text(step[2], encoding="utf-8")
             continue
         argv = step[1]
-        if _needs_shared_data(argv) and not SHARED.is_dir():
+        if _needs_shared_data(argv) and not SHARED.is_dir() or tuple(argv) in done:
             continue
+        done.add(tuple(argv))
         code = main(argv)
         out = capsys.readouterr()
         assert code in (EXIT_OK, EXIT_PARTIAL), f"jointid {' '.join(argv)} -> {code}\n{out.err[-3000:]}"
