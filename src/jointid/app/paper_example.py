@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.results import atomic_savefig, atomic_write, write_json
-from ..report.tables import format_table
+from ..report.formatting import format_pm, format_value, text_table
 
 __all__ = ["PAPER", "paper_config", "run_paper_example", "PaperExampleResult"]
 
@@ -71,6 +71,34 @@ class PaperExampleResult:
         return {k: v for k, v in self.tables.items() if k != "text"}
 
 
+#: Units of the example's parameters (modal quantities, one kg of modal mass).
+_UNITS = {"omega1 [rad/s]": "rad/s", "k3": "N/m³", "c0": "N s/m", "c1": "N s/m²", "c2": "N s/m³",
+          "c_quad (|q'|q')": "N s²/m²", "c_cubic (q'^3)": "N s³/m³"}
+
+
+def _shown(rows, stderr) -> list:
+    """Display rows of a table: the parameter with its unit, values through the one formatter,
+    ``stderr[column][parameter]`` beside the value of that column, errors as percentages."""
+    out = []
+    for r in rows:
+        name = r["parameter"]
+        unit = _UNITS.get(name, "")
+        label = name if name.endswith("]") or not unit else f"{name} [{unit}]"
+        row = {"parameter": label}
+        for k, v in r.items():
+            if k == "parameter":
+                continue
+            if k.endswith("error %"):
+                row[k.replace("error %", "error [%]")] = format_value(v, 3)
+            elif k in stderr:
+                se = stderr[k].get(name)
+                row[f"{k} ± standard error" if se is not None else k] = format_pm(v, se, digits=9)
+            else:
+                row[k] = format_value(v, 9)
+        out.append(row)
+    return out
+
+
 def _tables(r21, r22) -> dict:
     e = PAPER["exact"]
     g21 = r21.groups[0]
@@ -110,16 +138,19 @@ def _tables(r21, r22) -> dict:
         {"parameter": "c_cubic (q'^3)", "exact": 0.0, "identified": t3["c_cubic"], "error %": None,
          "paper identified": PAPER["table3_identified"]["c_cubic"]},
     ]
+    se1 = {"omega1 [rad/s]": g21.pooled.omega1_stderr, "k3": g21.pooled.get_stderr("k3")}
+    se2 = {f"c{k}": float(law.stderr[k]) for k in range(min(3, len(law.stderr)))}
     text = "\n".join(
         [
-            "Table 1. omega1^2 q - k3 q^3 + c q' (Eq 21): band average over the records and pooled regression",
-            format_table(rows1, list(rows1[0]), floatfmt=".9g"),
+            "Table 1. omega1^2 q - k3 q^3 + c q' (Eq 21): band average over the records and pooled regression "
+            "(value ± standard error)",
+            text_table(_shown(rows1, {"pooled": se1})),
             "",
             "Table 2. c(q_max) = c0 + c1 q_max + c2 q_max^2 (Eq 20), beside the paper's identified values",
-            format_table(rows2, list(rows2[0]), floatfmt=".9g"),
+            text_table(_shown(rows2, {"identified": se2})),
             "",
             "Table 3. Eq 22 model (adds |q'|q' and q'^3), band average",
-            format_table(rows3, list(rows3[0]), floatfmt=".9g"),
+            text_table(_shown(rows3, {})),
         ]
     )
     return {"table1": t1, "table2": t2, "table3": t3, "text": text,
@@ -150,6 +181,13 @@ def run_paper_example(out_dir, n_frequencies=41, figures=True, progress=False, n
 
 
 def _figures(cfg, r21, fig_dir):
+    for name, fig in example_figures(cfg, r21):
+        atomic_savefig(fig, fig_dir / name, dpi=120)
+
+
+def example_figures(cfg, r21) -> list:
+    """``(file name, figure)`` of the paper's Figs 4-6 for the simulated example ``cfg`` and its
+    Eq 21 identification ``r21``."""
     from ..report.identify_plots import new_axes, plot_damping_law, plot_parameters_vs_frequency
     from ..simulate.hbm import frequency_response
     from ..simulate.model import SingleModeModel
@@ -169,7 +207,7 @@ def _figures(cfg, r21, fig_dir):
     ax.set_title("Fig 4: frequency response curves")
     ax.legend()
     ax.grid(True, alpha=0.3)
-    atomic_savefig(ax.figure, fig_dir / "fig4_frf.png", dpi=120)
+    figs = [("fig4_frf.png", ax.figure)]
 
     recs = [r for r in r21.records if r.ok]
     f = np.array([r.signals.omega for r in recs])
@@ -185,7 +223,7 @@ def _figures(cfg, r21, fig_dir):
     axes = plot_parameters_vs_frequency(f, values, exact={"omega1 - exact [rad/s]": 0.0, "k3 - exact [N/m³]": 0.0},
                                         stderr=stderr, frequency_unit="rad/s",
                                         title="Fig 5: identified parameters (Eq 21) against the exact ones")
-    atomic_savefig(axes[0].figure, fig_dir / "fig5_parameters.png", dpi=120)
+    figs.append(("fig5_parameters.png", axes[0].figure))
 
     law = r21.damping_laws[preload]
     ax = plot_damping_law(law, ax=new_axes())
@@ -195,4 +233,5 @@ def _figures(cfg, r21, fig_dir):
         ax.plot(np.linspace(0, law.q_max.max(), 100), c_exact, "k:", lw=1.0, label="exact c(q_max)")
         ax.legend(fontsize=7)
     ax.set_title("Fig 6: equivalent damping c(q_max)")
-    atomic_savefig(ax.figure, fig_dir / "fig6_damping.png", dpi=120)
+    figs.append(("fig6_damping.png", ax.figure))
+    return figs

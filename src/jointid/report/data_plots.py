@@ -21,13 +21,13 @@ __all__ = [
 
 def new_figure(nrows=1, ncols=1, figsize=(6.0, 4.0)):
     """A new constrained-layout figure and its axes (no pyplot state)."""
-    from matplotlib.figure import Figure
+    from .figure_meta import ReportFigure
 
-    fig = Figure(figsize=figsize, layout="constrained")
+    fig = ReportFigure(figsize=figsize, layout="constrained")
     return fig, fig.subplots(nrows, ncols, squeeze=False)
 
 
-def plot_broadband_fit(fit, ax=None, q=None, label=None):
+def plot_broadband_fit(fit, ax=None, q=None, label=None, q_unit="m"):
     """Identified stiffness curve ``h(q, 0) / m`` of a :class:`~jointid.identify.broadband.BroadbandFit`.
 
     Parameters
@@ -47,14 +47,14 @@ def plot_broadband_fit(fit, ax=None, q=None, label=None):
     lin = fit.get("omega1^2") / fit.mass if "omega1^2" in fit.coefficient_names else None
     if lin is not None:
         ax.plot(q, lin * q, "--", lw=0.8, color="0.5", label="linear part")
-    ax.set_xlabel("q")
-    ax.set_ylabel("h(q, 0) / m")
+    ax.set_xlabel(f"q [{q_unit}]")
+    ax.set_ylabel(f"h(q, 0) / m [{q_unit}/s²]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return ax
 
 
-def plot_gain_fit(fit, ax=None):
+def plot_gain_fit(fit, ax=None, q_unit="m"):
     """Per-record ``c/m`` and single-record ``omega1`` against amplitude for a :class:`~jointid.identify.gain.GainFit`.
 
     With ``ax`` given (a pair of axes), draws into them; otherwise makes a 1 x 2 figure.
@@ -67,20 +67,25 @@ def plot_gain_fit(fit, ax=None):
     qm = np.asarray(fit.q_max, float)
     if "c" in fit.own_names:
         cm, cs = fit.per_record("c")
-        a0.errorbar(qm, cm, yerr=cs, fmt="o", capsize=2)
+        a0.errorbar(qm, cm, yerr=cs, fmt="o", capsize=2, label="each dwell, ± 1 standard error")
         for x, y, f in zip(qm, cm, fit.frequency_hz):
             a0.annotate(f"{f:g} Hz", (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
         a0.axhline(0.0, color="0.6", lw=0.8)
         a0.set_ylabel("c / m [1/s]")
-    a0.set_xlabel("q_max")
+        a0.legend(fontsize=7)
+    a0.set_xlabel(f"q_max [{q_unit}]")
     a0.grid(True, alpha=0.3)
     w = np.asarray(fit.omega1_per_record, float) / (2 * np.pi)
     a1.plot(qm, w, "o", label="each record alone (m, k3 fixed)")
-    a1.axhline(fit.f1_hz, color="C1", label=f"pooled f1 = {fit.f1_hz:.4g} Hz")
-    a1.set_xlabel("q_max")
+    rms = float(np.sqrt(np.mean((w - fit.f1_hz) ** 2))) if w.size else float("nan")
+    a1.axhline(fit.f1_hz, color="C1", label=f"pooled f1 = {fit.f1_hz:.4g} Hz, rms difference {rms:.2g} Hz")
+    a1.set_xlabel(f"q_max [{q_unit}]")
     a1.set_ylabel("f1 [Hz]")
     a1.grid(True, alpha=0.3)
-    a1.legend(fontsize=8)
+    a1.legend(fontsize=7)
+    from .figure_meta import mark_comparison
+
+    mark_comparison(a0, "pooled gain fit vs the single-dwell fits", "stderr bars", "rms error")
     return ax
 
 
@@ -161,7 +166,10 @@ def plot_silverbox_levels(levels, f1_hz, f1_err, zeta, zeta_err, k3k, k3k_err, *
          "damping ratio [%]"),
         (axes[0, 2], k3k, k3k_err, None, "k3 / k [1/V²]"),
     ):
-        ax.errorbar(lv, y, yerr=e, fmt="o-", capsize=2)
+        from .figure_meta import mark_comparison
+
+        mark_comparison(fig, "identified values per level vs the published reference", "stderr bars")
+        ax.errorbar(lv, y, yerr=e, fmt="o-", capsize=2, label="identified, ± 1 standard error")
         if ref is not None:
             ax.axhline(ref, color="C3", lw=0.8, ls="--", label="reference")
             ax.legend(fontsize=8)
@@ -186,4 +194,7 @@ def plot_simulation_error(t, y, y_sim, *, window=None, ax=None, unit_scale=1e3, 
     ax.set_ylabel(f"output [{unit}]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
+    from .figure_meta import mark_comparison
+
+    mark_comparison(ax, "simulated vs measured output", "rms error")
     return ax

@@ -224,7 +224,8 @@ def plot_parameters_vs_frequency(frequency, values: dict, exact: dict | None = N
         ax.grid(True, alpha=0.3)
         ax.set_xlabel(f"excitation frequency [{frequency_unit}]")
         compact_ticks(ax, "y", nbins=4)
-    axes[0].legend(fontsize=7, loc="upper right")
+    axes[0].legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2, frameon=False,
+                   borderaxespad=0.2)
     if title:
         axes[0].figure.suptitle(title, fontsize=10)
     if bars:
@@ -292,5 +293,6 @@ def plot_record_parameters(records, group=None, gain_free=False, title=None):
     for ax, key in zip(axes, vals):
         if key in exact:
             ax.axhline(exact[key], color="C1", lw=0.9, ls="--", label="pooled fit of the group")
-    axes[0].legend(fontsize=7, loc="upper right")
+    axes[0].legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2, frameon=False,
+                   borderaxespad=0.2)
     return axes

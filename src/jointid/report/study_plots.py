@@ -11,7 +11,8 @@ import numpy as np
 from .html import Section, write_html
 from .identify_plots import new_axes
 
-__all__ = ["statistics_table", "plot_calibration", "plot_z_histograms", "study_sections", "write_study_report"]
+__all__ = ["distribution_text", "statistics_table", "plot_calibration", "plot_z_histograms", "study_sections",
+           "write_study_report"]
 
 _COLUMNS = ("parameter", "n", "n_missing", "rel_bias", "rel_rmse", "mean_z", "std_z", "coverage")
 
@@ -22,6 +23,50 @@ def _fmt(v) -> str:
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     return f"{float(v):.4g}"
+
+
+def distribution_text(spec) -> str:
+    """A plan's distribution in words: ``{"loguniform": [0.001, 0.02]}`` -> ``log-uniform 0.001 .. 0.02``."""
+    if not isinstance(spec, dict):
+        return str(spec)
+    names = {"uniform": "uniform", "loguniform": "log-uniform", "normal": "normal", "choice": "one of",
+             "randint": "integer"}
+    parts = []
+    for k, v in spec.items():
+        if k in ("uniform", "loguniform", "randint") and isinstance(v, (list, tuple)) and len(v) == 2:
+            parts.append(f"{names[k]} {_fmt(v[0])} .. {_fmt(v[1])}")
+        elif k == "normal" and isinstance(v, (list, tuple)) and len(v) == 2:
+            parts.append(f"normal, mean {_fmt(v[0])}, sd {_fmt(v[1])}")
+        elif k == "choice":
+            parts.append("one of " + ", ".join(str(x).lower() if isinstance(x, bool) else str(x) for x in v))
+        elif k == "random_sign":
+            if v:
+                parts.append("random sign")
+        elif k == "size":
+            parts.append(f"{v[0]} to {v[1]} values" if isinstance(v, (list, tuple)) and len(v) == 2
+                         else f"{v} values")
+        else:
+            parts.append(f"{names.get(k, k)} {v}")
+    return ", ".join(parts)
+
+
+def _stat_rows(stats) -> list:
+    """Display rows of one grid point's statistics: few columns, the coverage with its interval."""
+    rows = []
+    for s in stats:
+        lo, hi, cov = s.get("coverage_low"), s.get("coverage_high"), s.get("coverage")
+        rows.append({
+            "parameter": str(s["parameter"]),
+            "n (missing)": f"{_fmt(s.get('n'))} ({_fmt(s.get('n_missing'))})",
+            "rel. bias [%]": "-" if s.get("rel_bias") is None else f"{100 * float(s['rel_bias']):.3g}",
+            "rel. RMSE [%]": "-" if s.get("rel_rmse") is None else f"{100 * float(s['rel_rmse']):.3g}",
+            "mean(z) [1]": "-" if s.get("mean_z") is None else f"{float(s['mean_z']):.2f}",
+            "std(z) [1]": "-" if s.get("std_z") is None else f"{float(s['std_z']):.2f}",
+            "coverage [%] (95 % interval)": "-" if cov is None else (
+                f"{100 * float(cov):.1f}" + ("" if lo is None or hi is None
+                                             else f" ({100 * float(lo):.1f} .. {100 * float(hi):.1f})")),
+        })
+    return rows
 
 
 def statistics_table(statistics) -> str:
@@ -62,12 +107,12 @@ def plot_calibration(statistics, ax=None, std_band=(0.8, 1.25), coverage_band=(0
     a.axvline(1.0, color="k", lw=0.8)
     a.plot(std, y, "o")
     a.set_xlim(0, max(2.0, 1.1 * float(np.nanmax(std))) if np.any(np.isfinite(std)) else 2.0)
-    a.set_xlabel("std(z)")
+    a.set_xlabel("std(z) [1]")
     a.set_yticks(y, names, fontsize=8)
     b.axvspan(*coverage_band, color="tab:green", alpha=0.15)
     b.axvline(0.95, color="k", lw=0.8)
     b.errorbar(cov, y, xerr=np.clip([cov - lo, hi - cov], 0, None), fmt="o", capsize=2)
-    b.set_xlabel("coverage of the 95 % interval")
+    b.set_xlabel("coverage of the 95 % interval [1]")
     b.set_yticks(y, [""] * len(y))
     for x in (a, b):
         x.invert_yaxis()
@@ -97,6 +142,8 @@ def plot_z_histograms(campaigns, parameters, grid_point=0, axes=None, ncols=3):
             ax.hist(np.clip(z, -lim, lim), bins=30, range=(-lim, lim), density=True, alpha=0.6)
         ax.plot(zz, np.exp(-zz**2 / 2) / np.sqrt(2 * np.pi), "k-", lw=1)
         ax.set_title(f"{name} (n={z.size})", fontsize=8)
+        ax.set_xlabel("z = (estimate - truth) / stderr [1]", fontsize=7)
+        ax.set_ylabel("density [1]", fontsize=7)
         ax.tick_params(labelsize=7)
     for ax in axes[n:]:
         ax.set_visible(False)
@@ -115,16 +162,16 @@ def study_sections(result) -> list:
         "covers the truth in 95 % of the campaigns; the coverage interval shown is Wilson's 95 % interval "
         "of that fraction. Relative bias and RMSE are relative to |truth|.",
     ])
-    intro.tables.append(("drawn per campaign", [{"path": p, "distribution": str(s)} for p, s in plan.vary], None))
+    intro.tables.append(("drawn per campaign", [{"path": p, "distribution": distribution_text(s)}
+                                                for p, s in plan.vary], None))
     sections = [intro]
-    cols = ["parameter", "n", "n_missing", "bias", "rmse", "rel_bias", "rel_rmse", "mean_z", "std_z", "coverage",
-            "coverage_low", "coverage_high"]
     for k, point in enumerate(plan.points):
         stats = [s for s in result.statistics if s["grid_point"] == k]
         title = "Statistics" if len(plan.points) == 1 else f"Grid point {k}: " + ", ".join(
             f"{p} = {v}" for p, v in point.items())
         sec = Section(title)
-        sec.tables.append(("per parameter", stats, cols))
+        sec.tables.append(("per parameter (relative bias and RMSE against |truth|; all numbers in results.json)",
+                           _stat_rows(stats), None))
         if stats:
             fig = plot_calibration(stats)[0].figure
             sec.figures.append(("std(z) and 95 % coverage per parameter (shaded: 0.8-1.25 and 92-98 %)",
