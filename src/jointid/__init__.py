@@ -7,7 +7,8 @@ Quick start
 >>> print(result.report())                                     # doctest: +SKIP
 
 A campaign is a folder with ``campaign.toml`` and its records (``docs/formats.md``);
-``jointid simulate examples/noisy_softening.toml --out campaign`` writes one.
+``jointid example --copy all`` then ``jointid simulate examples/noisy_softening.toml --out
+campaign`` writes one (the example files come with the package: :func:`example_files`).
 
 The data flow is the package layout: ``io`` (records, campaigns) -> ``signal`` (state
 signals) -> ``modal`` (structure, modal coordinates) -> ``identify`` (force-state

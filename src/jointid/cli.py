@@ -50,8 +50,10 @@ EXAMPLE_OUT = Path("example-out")
 EPILOG = """examples:
   jointid demo --out demo-out                # the virtual bolted-beam experiment, report.html
   jointid example --out example-out          # the seed paper's numerical example (Tables 1-3, Figs 4-6)
+  jointid example --copy all                 # the example input files (simulation, import, study) into examples/
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
+  jointid backbone results                   # omega(a), zeta(a) of a saved result, into results-backbone/
   jointid study plan.toml --out study --jobs 2   # Monte Carlo study: bias, RMSE, std(z), coverage
   jointid modal structure.toml --out modal   # FE modes, updating report, mode-shape plots
   jointid modal structure.toml --frf random.uff --response accel_42   # + modal fit of H1, trusted peaks
