@@ -3,7 +3,9 @@
 Exit codes: 0 success; 1 the run finished but some records failed or were flagged by the
 plausibility checks; 2 bad input (invalid arguments, manifest, configuration, record file
 or output folder), checked before the work starts where it can be; 3 an unexpected internal
-error; 130 interrupted (Ctrl-C), with the previous output set left as it was.
+error; 4 incomplete: the dask cluster (its scheduler) was lost mid-run, run the same command
+again (a study resumes from the campaigns done); 130 interrupted (Ctrl-C), with the previous
+output set left as it was (a study says what its folder holds).
 """
 
 from __future__ import annotations
@@ -14,9 +16,9 @@ import sys
 import warnings
 from pathlib import Path
 
-from .errors import JointidError, JointidWarning
+from .errors import ClusterLostError, JointidError, JointidWarning
 
-EXIT_OK, EXIT_PARTIAL, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_PARTIAL, EXIT_INPUT, EXIT_INTERNAL, EXIT_INCOMPLETE, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
 
 
 def _int_in(lo, hi):
@@ -469,9 +471,12 @@ def main(argv=None) -> int:
 
                 check_command_output(args.command, args.out, [getattr(args, k, None) for k in ("campaign", "plan", "description")])
             return COMMANDS[args.command](args)
-        except KeyboardInterrupt:
-            print(f"jointid {args.command}: interrupted; earlier results are left as they were", file=sys.stderr)
+        except KeyboardInterrupt as exc:  # a study's says what its folder holds
+            print(f"jointid {args.command}: interrupted; {exc or 'earlier results are left as they were'}", file=sys.stderr)
             return EXIT_INTERRUPTED
+        except ClusterLostError as exc:
+            print(f"jointid {args.command}: incomplete: {exc}", file=sys.stderr)
+            return EXIT_INCOMPLETE
         except JointidError as exc:
             print(f"jointid {args.command}: error: {exc}", file=sys.stderr)
             return EXIT_INPUT

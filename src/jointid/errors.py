@@ -18,6 +18,7 @@ __all__ = [
     "IdentificationError",
     "OutputError",
     "SchedulerError",
+    "ClusterLostError",
     "JointidWarning",
     "IllConditionedWarning",
     "ConvergenceWarning",
@@ -86,6 +87,17 @@ class OutputError(JointidError, OSError):
 
 class SchedulerError(JointidError, ConnectionError):
     """The dask scheduler given for parallel work cannot be reached."""
+
+
+class ClusterLostError(SchedulerError):
+    """The dask cluster (its scheduler) was lost in the middle of the work: the run is incomplete.
+
+    ``done`` and ``total`` count the tasks whose results were received.
+    """
+
+    def __init__(self, message, done=None, total=None):
+        super().__init__(message)
+        self.done, self.total = done, total
 
 
 class JointidWarning(UserWarning):

@@ -18,17 +18,22 @@ in a worker as in this process, so the floating-point results are bit-identical.
 
 A worker that dies is replaced (the nanny restarts it) and its tasks run again on the
 others: a task may be lost with ``ALLOWED_FAILURES`` workers before the run gives up.
+A lost scheduler (the cluster's head killed or unreachable) is different: the tasks not yet
+finished cannot be completed, and :func:`map_tasks` raises
+:class:`~jointid.errors.ClusterLostError` with the number of tasks done, after the results
+received so far were handed to ``on_result``.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 import time
 from contextlib import contextmanager
 
 from .._blas import single_threaded
-from ..errors import SchedulerError
+from ..errors import ClusterLostError, SchedulerError
 
 __all__ = ["map_tasks", "dask_client", "local_cluster", "progress_bar", "resolve_jobs", "ALLOWED_FAILURES"]
 
@@ -112,11 +117,35 @@ def dask_client(jobs=1, scheduler=None, timeout="20s"):
             client = Client(scheduler, timeout=timeout)
         except (OSError, TimeoutError) as exc:
             raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from exc
-        with client:
+        lost = False
+        try:
             yield client
+        except ClusterLostError:
+            lost = True
+            raise
+        finally:
+            _close(client, quiet=lost)
         return
     with local_cluster(resolve_jobs(jobs)) as cluster, Client(cluster) as client:
         yield client
+
+
+def _close(client, quiet=False):
+    """Close a client; after a lost scheduler without the client's log of its reconnection attempts
+    (a traceback on stderr that says nothing more than the ClusterLostError)."""
+    log = logging.getLogger("distributed.client")
+    disabled = log.disabled
+    log.disabled = disabled or quiet
+    try:
+        if quiet:
+            client.close(timeout=10)
+        else:
+            client.close()
+    except Exception:  # noqa: BLE001 - closing a client of a lost cluster may fail in many ways
+        if not quiet:
+            raise
+    finally:
+        log.disabled = disabled
 
 
 def local_cluster(n_workers: int, allowed_failures: int = ALLOWED_FAILURES):
@@ -194,16 +223,29 @@ def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=Fals
         bar.close()
 
 
+def _scheduler_lost(client, exc) -> bool:
+    """Whether a task failed because the client lost its scheduler (not because of the task)."""
+    from concurrent.futures import CancelledError
+
+    return isinstance(exc, CancelledError) or getattr(client, "status", "running") not in ("running", "newly-created")
+
+
 def _gather(client, fn, arglist, results, bar, on_result, on_lost):
     from distributed import as_completed
 
     futures = [client.submit(_call, fn, args, pure=False) for args in arglist]
     index = {f.key: i for i, f in enumerate(futures)}
+    n_done = 0
     for fut in as_completed(futures):
         i = index[fut.key]
         try:
             results[i] = fut.result()
         except Exception as exc:  # noqa: BLE001 - a lost task must not lose the others
+            if _scheduler_lost(client, exc):
+                address = getattr(getattr(client, "scheduler", None), "address", None) or "?"
+                raise ClusterLostError(f"the dask cluster was lost (no answer from its scheduler at {address}) after "
+                                       f"{n_done} of {len(arglist)} tasks; nothing was written: run the same command "
+                                       f"again", n_done, len(arglist)) from None
             if on_lost is None:
                 raise
             results[i] = on_lost(i, f"{type(exc).__name__}: {exc}")
@@ -212,4 +254,5 @@ def _gather(client, fn, arglist, results, bar, on_result, on_lost):
                 on_result(i, results[i])
         finally:
             fut.release()
+        n_done += 1
         bar.update()

@@ -45,6 +45,7 @@ that the results give.  :func:`study_statistics` turns the rows into bias, RMSE,
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import html
@@ -71,6 +72,9 @@ __all__ = [
     "comparison_rows",
     "study_statistics",
     "read_campaign_lines",
+    "check_study_folder",
+    "remove_stale_scratch",
+    "StudyInterrupted",
 ]
 
 RESULTS_FILE = "campaigns.jsonl"
@@ -512,6 +516,40 @@ def comparison_rows(summary: dict, truth: dict) -> list:
 # ----------------------------------------------------------------------------------------------------------
 # one campaign
 
+#: Scratch folders of the campaigns in the temporary directory: ``jointid-study-<pid>-<random>``.
+SCRATCH_PREFIX = "jointid-study-"
+
+
+def remove_stale_scratch(folder=None) -> list:
+    """Remove the campaign scratch folders of processes that are gone (a worker killed mid-campaign).
+
+    Only folders named ``jointid-study-<pid>-...`` whose process no longer runs on this machine
+    are removed (a folder of a running study, here or in another worker, is left alone).
+
+    Returns
+    -------
+    list of Path
+        The folders removed.
+    """
+    import shutil
+
+    from ..io.outputset import pid_alive
+
+    folder = Path(folder or tempfile.gettempdir())
+    removed = []
+    try:
+        candidates = list(folder.glob(f"{SCRATCH_PREFIX}*-*"))
+    except OSError:
+        return removed
+    for p in candidates:
+        pid = p.name[len(SCRATCH_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit() or not p.is_dir() or p.is_symlink() or pid_alive(int(pid)):
+            continue
+        shutil.rmtree(p, ignore_errors=True)
+        removed.append(p)
+    return removed
+
+
 
 def run_campaign(plan: StudyPlan, index: int) -> dict:
     """Simulate, identify and compare campaign ``index`` of a plan; never raises for a bad campaign.
@@ -535,7 +573,8 @@ def run_campaign(plan: StudyPlan, index: int) -> dict:
         config = load_simulation_config(tables, source=f"{plan.source} campaign {index}")
         truth = campaign_truth(config)
         settings = replace(plan.settings, jobs=1, scheduler=None, progress=False)
-        with tempfile.TemporaryDirectory(prefix="jointid-study-") as tmp:
+        remove_stale_scratch()
+        with tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-") as tmp:
             simulate_campaign(config, Path(tmp) / "campaign")
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", JointidWarning)
@@ -684,40 +723,193 @@ class StudyResult:
         return plot_calibration([s for s in self.statistics if s["grid_point"] == grid_point], ax=ax)
 
 
-def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
-    """The campaign lines of a results file, by index.
+def _torn_tail(data: bytes) -> bytes:
+    """The bytes after the last newline (a line cut short by a killed run), or ``b""``."""
+    return data[data.rfind(b"\n") + 1:]
 
-    A last line cut short (an interrupted run) is ignored; the file is cut back to its last
-    complete line so that appending continues cleanly.
+
+def _tail_plan(tail: bytes):
+    """The plan fingerprint written at the start of a line cut short, if it got that far."""
+    import re
+
+    m = re.search(rb'"plan": "([0-9a-f]{16})"', tail)
+    return m.group(1).decode() if m else None
+
+
+def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
+    """The campaign lines of a results file, by index; the file is only read, never changed.
+
+    A last line cut short (an interrupted run) is left out; :func:`run_study` removes it
+    from the file when it resumes the same plan.
 
     Raises
     ------
     jointid.errors.ManifestError
-        A line that is not JSON (other than the last), or lines of another plan.
+        A line that is not a campaign line (other than the last), or lines of another plan
+        (also a last line cut short that shows another plan).
     """
     path = Path(path)
     if not path.is_file():
         return {}
     data = path.read_bytes()
-    end = data.rfind(b"\n") + 1
-    if end < len(data):
-        with open(path, "r+b") as fh:
-            fh.truncate(end)
+    tail = _torn_tail(data)
     out = {}
-    for n, text in enumerate(data[:end].decode("utf-8").splitlines(), 1):
-        if not text.strip():
+    try:
+        text = data[:len(data) - len(tail)].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ManifestError(f"{path}: not a campaigns file of jointid (not UTF-8 text: {exc})") from None
+    for n, line_text in enumerate(text.splitlines(), 1):
+        if not line_text.strip():
             continue
         try:
-            line = json.loads(text)
+            line = json.loads(line_text)
             index = int(line["index"])
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, KeyError, TypeError, OverflowError) as exc:
             raise ManifestError(f"{path} [line {n}]: not a campaign line: {exc}") from exc
         if plan is not None and line.get("plan") != plan.fingerprint:
             raise ManifestError(
                 f"{path} [line {n}]: campaign {index} was made by another plan (fingerprint {line.get('plan')}, "
                 f"this plan {plan.fingerprint}); write the study to another folder or remove the file")
         out[index] = line
+    if plan is not None and tail.strip():
+        other = _tail_plan(tail)
+        if other is not None and other != plan.fingerprint:
+            raise ManifestError(
+                f"{path}: its last line (cut short) was made by another plan (fingerprint {other}, this plan "
+                f"{plan.fingerprint}); write the study to another folder or remove the file")
     return out
+
+
+STUDY_FINAL_FILES = ("study.json", "statistics.csv", "report.html")
+
+
+class StudyInterrupted(KeyboardInterrupt):
+    """A study stopped by Ctrl-C; its message says what the output folder holds and how to resume."""
+
+
+def _final_state(out: Path) -> str:
+    """What the final files of a study folder describe (from its marker), in words."""
+    from ..io.outputset import read_marker
+
+    marker = read_marker(out) or {}
+    n = marker.get("campaigns")
+    if n and n.isdigit():
+        return (f"{', '.join(f for f in STUDY_FINAL_FILES if (out / f).is_file())} are those of the last complete run "
+                f"({n} campaigns)")
+    if (out / "study.json").is_file():
+        return "study.json and the other final files are those of an earlier run"
+    return "no study.json is written yet"
+
+
+def check_study_folder(out, plan: StudyPlan | None = None) -> dict | None:
+    """Refuse a study output folder before any work; returns its marker (None for a new or older folder).
+
+    A study writes into its folder (``campaigns.jsonl`` grows as campaigns finish and a study
+    is resumed there), so the folder must be new, empty, or a study folder: one marked as
+    such by jointid (of the same plan), or one of an earlier version that holds only the
+    files of a study.
+
+    Raises
+    ------
+    jointid.errors.OutputError
+    """
+    from ..errors import OutputError
+    from ..io.outputset import MARKER, check_output_folder, read_marker
+
+    out = Path(out)
+    plan_file = Path(plan.source) if plan is not None and Path(plan.source).is_file() else None
+    check_output_folder(out, "study", (plan_file,), replace=False)
+    if not out.is_dir():
+        return None
+    names = {p.name for p in out.iterdir()}
+    if not names:
+        return None
+    marker = read_marker(out)
+    if marker is None:
+        own = {RESULTS_FILE, *STUDY_FINAL_FILES}
+        if RESULTS_FILE in names and {n for n in names if not n.startswith(".")} <= own:
+            return None  # a study folder of an earlier version
+        raise OutputError(f"{out}: exists and holds files that are not a jointid study (no {MARKER} marker); a "
+                          f"study writes into its folder, so give a new or empty folder, or the folder of the same study")
+    if marker["kind"] != "study":
+        raise OutputError(f"{out}: holds a jointid {marker['kind']} output set; a study never replaces or mixes "
+                          f"with another kind, so give another folder")
+    if plan is not None and marker.get("plan") not in (None, plan.fingerprint):
+        raise ManifestError(f"{out}: holds a study of another plan (fingerprint {marker.get('plan')}, this plan "
+                            f"{plan.fingerprint}); write the study to another folder")
+    return marker
+
+
+def _move_ready(out: Path, ready: Path) -> None:
+    """Put a committed final set in place: its files, then its marker (last: it says which set is
+    in place); a final file of an earlier run that the set does not have (``report.html`` after
+    ``--no-report``) describes other campaigns and is removed."""
+    from ..io.outputset import MARKER, read_marker
+
+    marker = read_marker(ready)
+    for p in sorted(ready.iterdir()):
+        if p.name != MARKER:
+            os.replace(p, out / p.name)
+    if marker is not None:
+        for name in STUDY_FINAL_FILES:
+            if name not in (marker["files"] or ()) and (out / name).is_file():
+                (out / name).unlink()
+        os.replace(ready / MARKER, out / MARKER)
+    ready.rmdir()
+
+
+def _recover_final(out: Path) -> None:
+    """Finish the final set that a killed run had committed; remove the uncommitted ones of dead runs."""
+    import shutil
+
+    from ..io.outputset import pid_alive
+
+    if not out.is_dir():
+        return
+    for p in sorted(out.glob(".final.*.ready")):
+        _move_ready(out, p)
+    for p in out.glob(".final.*-*.tmp"):
+        pid = p.name[len(".final."):].split("-", 1)[0]
+        if pid.isdigit() and not pid_alive(int(pid)):
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def _write_final_set(out: Path, result, run_id: str, report: bool) -> None:
+    """Write ``study.json``, ``statistics.csv`` and ``report.html`` as one set.
+
+    The files and a marker (run id, plan, number of campaigns they describe, the files) are
+    written into ``.final.<pid>-<run id>.tmp``; renaming it to ``.final.<run id>.ready`` is
+    the commit, after which the files are moved into place (Ctrl-C held back meanwhile).  A run
+    killed before the commit leaves the previous set; one killed after it leaves the ready
+    folder, which the next run on the folder moves into place before anything else.
+    """
+    import shutil
+
+    from ..io.outputset import MARKER, deferred_interrupt, marker_text
+    from ..io.results import atomic_write, write_csv, write_json
+
+    tmp = out / f".final.{os.getpid()}-{run_id}.tmp"
+    tmp.mkdir()
+    try:
+        summary = result.summary()
+        summary["run_id"] = run_id
+        write_json(tmp / "study.json", summary)
+        write_csv(tmp / "statistics.csv", list(result.statistics),
+                  columns=list(result.statistics[0]) if result.statistics else ["grid_point", "parameter"])
+        if report:
+            from ..report.study_plots import write_study_report
+
+            write_study_report(result, tmp / "report.html")
+        files = sorted(p.name for p in tmp.iterdir())
+        atomic_write(tmp / MARKER, marker_text(run_id, "study", [RESULTS_FILE] + files, plan=result.plan.fingerprint,
+                                               campaigns=len(result.campaigns)))
+        ready = out / f".final.{run_id}.ready"
+        with deferred_interrupt():
+            os.rename(tmp, ready)
+            _move_ready(out, ready)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
 
 
 def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=False, report=True) -> StudyResult:
@@ -730,7 +922,9 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
     out_dir : path
         Output folder: ``campaigns.jsonl`` (one line per campaign, appended as campaigns
         finish and sorted by index at the end), ``study.json``, ``statistics.csv`` and
-        ``report.html``.  Campaigns already in ``campaigns.jsonl`` are not run again.
+        ``report.html``.  Campaigns already in ``campaigns.jsonl`` are not run again.  The
+        three final files are written as one set once every campaign is done
+        (:func:`_write_final_set`); the folder's marker says how many campaigns they describe.
     jobs : int, default 1
         ``1``: in this process; ``N``: a local dask cluster of ``N`` workers; ``0``: one per core.
     scheduler : str, optional
@@ -745,46 +939,86 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
     Returns
     -------
     StudyResult
+
+    Raises
+    ------
+    jointid.errors.OutputError
+        ``out_dir`` is not a study folder (see :func:`check_study_folder`).
+    jointid.errors.ClusterLostError
+        The cluster was lost: the campaigns done are in ``campaigns.jsonl`` and the final files
+        are left as they were; running the same study again resumes it.
+    StudyInterrupted
+        Ctrl-C (a KeyboardInterrupt whose message says what the folder holds).
     """
-    from ..io.results import atomic_write, write_csv, write_json
+    from ..errors import ClusterLostError
+    from ..io.outputset import MARKER, marker_text, new_run_id
+    from ..io.results import atomic_write
     from .parallel import map_tasks
 
     if not isinstance(plan, StudyPlan):
         plan = StudyPlan.from_mapping(plan) if isinstance(plan, dict) else load_study_plan(plan)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    marker = check_study_folder(out, plan)
+    _recover_final(out)
     path = out / RESULTS_FILE
-    done = read_campaign_lines(path, plan)
+    done = read_campaign_lines(path, plan)  # refuses lines of another plan; changes nothing
+    created = [p for p in (out, out / MARKER, path) if not p.exists()]
+    out.mkdir(parents=True, exist_ok=True)
+    if marker is None:
+        atomic_write(out / MARKER, marker_text(new_run_id(), "study", plan=plan.fingerprint, campaigns="none"))
+    if path.is_file() and _torn_tail(path.read_bytes()):  # a line cut short by a killed run of this plan
+        data = path.read_bytes()
+        atomic_write(path, data[:len(data) - len(_torn_tail(data))])
     todo = [i for i in range(plan.n_campaigns) if i not in done]
+    n_before = len(done)
 
-    with open(path, "a", encoding="utf-8") as fh:
+    def saved():
+        n_plan = sum(1 for i in range(plan.n_campaigns) if i in done)
+        return f"{n_plan} of {plan.n_campaigns} campaigns are saved in {path}"
 
-        def append(_, line):
-            fh.write(json.dumps(line, allow_nan=False) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-            done[line["index"]] = line
+    try:
+        with open(path, "a", encoding="utf-8") as fh:
 
-        def lost(i, message):  # failed in this run, not written: a resumed study tries it again
-            index = todo[i]
-            return {"index": index, "seed": plan.campaign_seed(index), "plan": plan.fingerprint,
-                    "grid_point": index % len(plan.points), "drawn": None, "status": "failed",
-                    "error": f"campaign {index}: lost on the workers: {message}", "n_records": 0, "n_failed": 0,
-                    "rows": []}
+            def append(_, line):
+                fh.write(json.dumps(line, allow_nan=False) + "\n")
+                fh.flush()
+                os.fsync(fh.fileno())
+                done[line["index"]] = line
 
-        new = map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
-                        progress=progress, desc="campaigns", on_result=append, on_lost=lost)
+            def lost(i, message):  # failed in this run, not written: a resumed study tries it again
+                index = todo[i]
+                return {"index": index, "seed": plan.campaign_seed(index), "plan": plan.fingerprint,
+                        "grid_point": index % len(plan.points), "drawn": None, "status": "failed",
+                        "error": f"campaign {index}: lost on the workers: {message}", "n_records": 0, "n_failed": 0,
+                        "rows": []}
+
+            new = map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
+                            progress=progress, desc="campaigns", on_result=append, on_lost=lost)
+    except ClusterLostError as exc:
+        head = str(exc).split(";")[0]
+        raise ClusterLostError(f"{head}; {saved()} and {_final_state(out)}; run the same command again to resume",
+                               exc.done, exc.total) from None
+    except KeyboardInterrupt:
+        raise StudyInterrupted(f"{saved()} and {_final_state(out)}; run the same command again to resume") from None
+    except BaseException:
+        if len(done) == n_before == 0:  # nothing run: leave no trace of this run
+            for p in reversed(created):
+                if p.is_dir():
+                    with contextlib.suppress(OSError):
+                        p.rmdir()
+                elif p.exists():
+                    p.unlink()
+        raise
+    finally:
+        remove_stale_scratch()  # scratch folders of workers killed in this run (a local cluster's are gone now)
     lines = [done[i] for i in sorted(done)]
     atomic_write(path, "".join(json.dumps(line, allow_nan=False) + "\n" for line in lines))
     lost_lines = {line["index"]: line for line in new if line["index"] not in done}
     current = tuple(done.get(i) or lost_lines[i] for i in range(plan.n_campaigns))
     result = StudyResult(plan.name, plan, current, tuple(study_statistics(current)), n_run=len(todo))
-    write_json(out / "study.json", result.summary())
-    write_csv(out / "statistics.csv", list(result.statistics),
-              columns=list(result.statistics[0]) if result.statistics else ["grid_point", "parameter"])
-    if report:
-        from ..report.study_plots import write_study_report
-
-        write_study_report(result, out / "report.html")
+    try:
+        _write_final_set(out, result, new_run_id(), report)
+    except KeyboardInterrupt:
+        raise StudyInterrupted(f"all {plan.n_campaigns} campaigns are saved in {path} and {_final_state(out)}; "
+                               f"run the same command again to write the final files") from None
     return result
-
