@@ -101,3 +101,51 @@ def test_check_delay_plausible_messages():
         check_delay_plausible(0.01, [20.0, 30.0], [1.0])
     with pytest.raises(IdentificationError, match="of the shortest record"):
         check_delay_plausible(0.01, [1.0], [0.05])
+
+
+# ------------------------------------------------------------------------------ import units
+def _lab_csv(folder):
+    t = np.arange(2048) / 512.0
+    rows = np.column_stack([t, np.sin(2 * np.pi * 20 * t), 0.5 * np.cos(2 * np.pi * 20 * t)])
+    np.savetxt(folder / "lab.csv", rows, delimiter=",", header="time,Load,Acc", comments="")
+
+
+@pytest.mark.parametrize("column, unit, kind", [("accel", "kN", "force"), ("force", "ms", "time"),
+                                                ("accel", "mm/s", "velocity"),
+                                                ("force", "deg", "angle")])
+def test_import_refuses_a_unit_of_the_wrong_dimension(tmp_path, capsys, column, unit, kind):
+    _lab_csv(tmp_path)
+    chans = {"force": '"Load"', "accel": '"Acc"'}
+    chans[column] = f'{{ channel = {chans[column]}, unit = "{unit}" }}'
+    (tmp_path / "d.toml").write_text(
+        "[import]\nchannels = { " + ", ".join(f"{k} = {v}" for k, v in chans.items()) + " }\n"
+        '[[record]]\nfile = "lab.csv"\nfrequency_hz = 20.0\n')
+    code, _, err = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "c"], capsys)
+    assert code == 2, err
+    assert "d.toml" in err and f"channels.{column}" in err and repr(unit) in err and kind in err, err
+    assert not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("column, unit", [("force", "V"), ("force", "kN"), ("accel", "g"), ("time", "ms"),
+                                          ("accel_b", "mm/s^2"), ("sensor7", "g")])
+def test_import_takes_units_of_the_right_dimension(tmp_path, column, unit):
+    from jointid.io.units import check_column_unit
+
+    check_column_unit(column, unit, "d.toml: ")
+
+
+@pytest.mark.parametrize("fmt", ["csv", "h5"])
+def test_import_refuses_a_time_column_inside_the_column_map(tmp_path, capsys, fmt):
+    import h5py
+
+    t = np.arange(2048) / 512.0
+    F, a = np.sin(2 * np.pi * 20 * t), np.cos(2 * np.pi * 20 * t)
+    if fmt == "csv":
+        np.savetxt(tmp_path / "d.csv", np.column_stack([t, F, a]), delimiter=",", header="t,F,A", comments="")
+    else:
+        with h5py.File(tmp_path / "d.h5", "w") as h5:
+            h5["t"], h5["F"], h5["A"] = t, F, a
+    (tmp_path / "d.toml").write_text(f'[import]\nfs = 512.0\nchannels = {{ time = "t", force = "F", accel = "A" }}\n'
+                                     f'[[record]]\nfile = "d.{fmt}"\nfrequency_hz = 20.0\n')
+    code, _, err = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "c"], capsys)
+    assert code == 2 and "channels.time" in err and "time =" in err, err

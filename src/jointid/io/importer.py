@@ -84,6 +84,7 @@ from .campaign import (
 )
 from .channels import Channels, merge_channels, validate_channels
 from .outputset import output_set
+from .units import UNITS, check_column_unit
 
 #: Keys of an import description, of its ``[import]`` table, of a record and of a source.
 DESCRIPTION_KEYS = ("campaign", "import", "record", "structure")
@@ -95,13 +96,8 @@ RECORD_KEYS = ("file", "source", "channels", "fs", "frequency_hz", "force_level"
 SOURCE_KEYS = ("file", "channels", "time", "fs")
 #: Keys of a column of the column map given as a table.
 COLUMN_KEYS = ("channel", "unit", "scale")
-#: Factors from the units a column map may name to SI.
-UNIT_FACTORS = {
-    "": 1.0, "si": 1.0, "m": 1.0, "m/s": 1.0, "m/s^2": 1.0, "m/s2": 1.0, "n": 1.0, "v": 1.0, "s": 1.0, "rad": 1.0,
-    "mm": 1e-3, "um": 1e-6, "mm/s": 1e-3, "mm/s^2": 1e-3, "g": 9.80665, "mg": 9.80665e-3, "kn": 1e3, "mn": 1e-3,
-    "mv": 1e-3, "ms": 1e-3, "in": 0.0254, "in/s": 0.0254, "lbf": 4.4482216152605,
-    "hz": 1.0, "deg": np.pi / 180, "degree": np.pi / 180, "degrees": np.pi / 180,
-}
+#: Factors from the units a column map may name to SI (:data:`jointid.io.units.UNITS` holds their dimensions).
+UNIT_FACTORS = {u: f for u, (f, _) in UNITS.items()}
 
 __all__ = ["ImportResult", "import_campaign", "read_source"]
 
@@ -226,14 +222,18 @@ def _channel_map(value, ctx) -> dict:
         raise ManifestError(f"{ctx}channels must be a table column -> channel, e.g. "
                             f"{{ force = \"F\", accel = \"A1\" }}, got {value!r}")
     for k, v in value.items():
+        if str(k).strip().lower() == "time":  # the time base is not a channel: it would be written twice
+            raise ManifestError(f"{ctx}channels.{k}: the time column is not a channel of the column map; name it "
+                                f"with time = \"{v if isinstance(v, str) else '...'}\" (in [import], the record or "
+                                "the source) or give the sampling rate fs")
         if isinstance(v, dict):
             check_keys(v, COLUMN_KEYS, f"{ctx}channels.{k}: ")
             if not isinstance(v.get("channel"), str) or not v["channel"]:
                 raise ManifestError(f"{ctx}channels.{k} needs channel = \"<name in the file>\", got {v!r}")
             unit = v.get("unit", "")
-            if not isinstance(unit, str) or unit.strip().lower() not in UNIT_FACTORS:
-                raise ManifestError(f"{ctx}channels.{k}: unknown unit {unit!r}; known: "
-                                    f"{sorted(u for u in UNIT_FACTORS if u)} (or give scale)")
+            if not isinstance(unit, str):
+                raise ManifestError(f"{ctx}channels.{k}: unit must be text, got {unit!r}")
+            check_column_unit(k, unit, ctx)  # known, and of the column's dimension
             scale = _number(v.get("scale", 1.0), "scale", f"{ctx}channels.{k}: ")
             if scale is None or scale == 0:
                 raise ManifestError(f"{ctx}channels.{k}: scale must be a finite non-zero number, got {v.get('scale')!r}")

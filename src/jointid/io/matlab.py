@@ -47,6 +47,7 @@ import numpy as np
 
 from jointid.errors import RecordError, RecordFileNotFoundError, where
 from jointid.io.channels import TIME_RTOL, Channels
+from jointid.io.units import SI_NAMES
 
 __all__ = ["read_mat", "mat_variables", "testlab_unit"]
 
@@ -63,22 +64,8 @@ _SI_SYMBOL = {
     "MOLCULAR_AMOUNT": "mol",
     "MOLECULAR_AMOUNT": "mol",
 }
-# SI dimension exponents (kg, m, s, A) -> usual unit name
-_NAMED_UNITS = {
-    (0, 1, 0, 0): "m",
-    (0, 1, -1, 0): "m/s",
-    (0, 1, -2, 0): "m/s^2",
-    (0, 0, 1, 0): "s",
-    (0, 0, -1, 0): "Hz",
-    (1, 1, -2, 0): "N",
-    (1, 2, -2, 0): "N m",
-    (1, -1, -2, 0): "Pa",
-    (1, 2, -3, -1): "V",
-    (0, 0, 0, 1): "A",
-    (1, 0, -2, 0): "N/m",
-    (1, 0, -1, 0): "N s/m",
-    (0, 0, 0, 0): "",
-}
+# SI dimension exponents (kg, m, s, A) -> usual unit name (the one table of units: jointid.io.units)
+_NAMED_UNITS = SI_NAMES
 
 
 def _is_struct(obj: Any) -> bool:

@@ -1,0 +1,105 @@
+"""Units of the imported channels: one table of names, factors to SI and dimensions.
+
+A dimension is the tuple of SI exponents ``(kg, m, s, A)``; angles are dimensionless and
+told apart by name.  The import column map (:mod:`jointid.io.importer`) converts with the
+factors and refuses a unit whose dimension does not fit the column's kind (an ``accel``
+column in ``kN``, a ``force`` column in ``ms``); the MAT reader (:mod:`jointid.io.matlab`)
+names the SI unit of a set of exponents with :data:`SI_NAMES`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import ManifestError
+
+__all__ = ["UNITS", "SI_NAMES", "KINDS", "unit_factor", "unit_dimension", "column_kind", "check_column_unit"]
+
+MASS, LENGTH, TIME, CURRENT = (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)
+NONE = (0, 0, 0, 0)
+FORCE = (1, 1, -2, 0)
+ACCELERATION = (0, 1, -2, 0)
+VELOCITY = (0, 1, -1, 0)
+DISPLACEMENT = LENGTH
+VOLTAGE = (1, 2, -3, -1)
+FREQUENCY = (0, 0, -1, 0)
+ANGLE = "angle"  # dimensionless, but not to be mixed with a plain number
+
+#: Unit name (lower case) -> (factor to SI, dimension).  ``""`` and ``"si"`` are SI of any dimension.
+UNITS = {
+    "": (1.0, None), "si": (1.0, None),
+    "s": (1.0, TIME), "ms": (1e-3, TIME),
+    "n": (1.0, FORCE), "kn": (1e3, FORCE), "mn": (1e-3, FORCE), "lbf": (4.4482216152605, FORCE),
+    "m/s^2": (1.0, ACCELERATION), "m/s2": (1.0, ACCELERATION), "mm/s^2": (1e-3, ACCELERATION),
+    "g": (9.80665, ACCELERATION), "mg": (9.80665e-3, ACCELERATION),
+    "m/s": (1.0, VELOCITY), "mm/s": (1e-3, VELOCITY), "in/s": (0.0254, VELOCITY),
+    "m": (1.0, LENGTH), "mm": (1e-3, LENGTH), "um": (1e-6, LENGTH), "in": (0.0254, LENGTH),
+    "v": (1.0, VOLTAGE), "mv": (1e-3, VOLTAGE),
+    "hz": (1.0, FREQUENCY),
+    "rad": (1.0, ANGLE), "deg": (math.pi / 180, ANGLE), "degree": (math.pi / 180, ANGLE),
+    "degrees": (math.pi / 180, ANGLE),
+}
+
+#: SI exponents ``(kg, m, s, A)`` -> the usual name of the SI unit.
+SI_NAMES = {
+    LENGTH: "m", VELOCITY: "m/s", ACCELERATION: "m/s^2", TIME: "s", FREQUENCY: "Hz", FORCE: "N",
+    (1, 2, -2, 0): "N m", (1, -1, -2, 0): "Pa", VOLTAGE: "V", CURRENT: "A", (1, 0, -2, 0): "N/m",
+    (1, 0, -1, 0): "N s/m", NONE: "",
+}
+
+#: Kind of channel -> the dimensions its unit may have, and the words that name it.
+KINDS = {
+    "time": (TIME,),
+    "force": (FORCE, VOLTAGE),  # a force cell, or the shaker voltage standing for it (force gain unknown)
+    "acceleration": (ACCELERATION,),
+    "velocity": (VELOCITY,),
+    "displacement": (LENGTH,),
+    "voltage": (VOLTAGE,),
+    "frequency": (FREQUENCY,),
+    "phase": (ANGLE,),
+}
+_DIM_NAMES = {TIME: "time", FORCE: "force", VOLTAGE: "voltage", ACCELERATION: "acceleration",
+              VELOCITY: "velocity", LENGTH: "length", FREQUENCY: "frequency", ANGLE: "angle"}
+
+
+def unit_factor(unit: str) -> float:
+    """Factor from ``unit`` to SI (KeyError for an unknown unit)."""
+    return UNITS[str(unit).strip().lower()][0]
+
+
+def unit_dimension(unit: str):
+    """Dimension of ``unit`` (``None``: SI of any dimension; KeyError for an unknown unit)."""
+    return UNITS[str(unit).strip().lower()][1]
+
+
+def column_kind(column: str) -> str | None:
+    """Kind of a campaign column by its name (``time``, ``force``, ``accel...``...), or ``None``
+    when the name does not say (a sensor named by its position: any unit is taken)."""
+    name = str(column).strip().lower()
+    if name == "time":
+        return "time"
+    if name.endswith("_phase"):
+        return "phase"
+    if name == "frequency_hz":
+        return "frequency"
+    for prefix, kind in (("force", "force"), ("accel", "acceleration"), ("acc_", "acceleration"),
+                         ("vel", "velocity"), ("disp", "displacement"), ("voltage", "voltage")):
+        if name.startswith(prefix):
+            return kind
+    return None
+
+
+def check_column_unit(column: str, unit: str, context: str = "") -> None:
+    """Raise a :class:`ManifestError` when ``unit`` is unknown or of another dimension than the
+    column's kind (``context`` names the file and record)."""
+    key = str(unit).strip().lower()
+    if key not in UNITS:
+        raise ManifestError(f"{context}channels.{column}: unknown unit {unit!r}; known: "
+                            f"{sorted(u for u in UNITS if u)} (or give scale)")
+    kind = column_kind(column)
+    dim = UNITS[key][1]
+    if kind is None or dim is None or dim in KINDS[kind]:
+        return
+    allowed = [u for u, (_, d) in UNITS.items() if d in KINDS[kind]]
+    raise ManifestError(f"{context}channels.{column}: unit {unit!r} is a {_DIM_NAMES.get(dim, str(dim))}, but "
+                        f"column {column!r} holds a {kind}; units of a {kind}: {', '.join(allowed)}")
