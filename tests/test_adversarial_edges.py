@@ -149,3 +149,44 @@ def test_import_refuses_a_time_column_inside_the_column_map(tmp_path, capsys, fm
                                      f'[[record]]\nfile = "d.{fmt}"\nfrequency_hz = 20.0\n')
     code, _, err = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "c"], capsys)
     assert code == 2 and "channels.time" in err and "time =" in err, err
+
+
+# ------------------------------------------------------------------------------ HDF5 datasets
+def _bad_h5(path, kind, layout="generic"):
+    import h5py
+
+    t = np.arange(2048) / 512.0
+    with h5py.File(path, "w") as h5:
+        g = h5 if layout == "generic" else h5.create_group("record")
+        c = g if layout == "generic" else g.create_group("channels")
+        if layout != "generic":
+            g.attrs["fs"] = 512.0
+        c["accel"] = np.cos(2 * np.pi * 20 * t)
+        if kind == "text":
+            c["force"] = np.array([b"1.0"] * t.size)
+        elif kind == "compound":
+            c["force"] = np.zeros(t.size, dtype=[("a", "f8"), ("b", "i4")])
+        elif kind == "complex":
+            c["force"] = np.exp(1j * t)
+        else:  # a compressed dataset of 1e11 values stored in a few kilobytes (never written)
+            c.create_dataset("force", shape=(100_000_000_000,), dtype="f8", compression="gzip", chunks=(1 << 20,))
+
+
+@pytest.mark.parametrize("kind, words", [("text", "text"), ("compound", "compound"), ("complex", "complex"),
+                                         ("huge", "more than the limit")])
+def test_import_of_hdf5_datasets_of_the_wrong_kind(tmp_path, capsys, kind, words):
+    _bad_h5(tmp_path / "d.h5", kind)
+    (tmp_path / "d.toml").write_text('[import]\nfs = 512.0\nchannels = { force = "force", accel = "accel" }\n'
+                                     '[[record]]\nfile = "d.h5"\nfrequency_hz = 20.0\n')
+    code, _, err = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "c"], capsys)
+    assert code == 2 and "d.h5" in err and "'force'" in err and words in err, err
+
+
+@pytest.mark.parametrize("kind, words", [("text", "text"), ("compound", "compound"), ("huge", "more than the limit")])
+def test_jointid_hdf5_record_of_the_wrong_kind(tmp_path, kind, words):
+    from jointid.errors import RecordError
+    from jointid.io.hdf5 import read_hdf5
+
+    _bad_h5(tmp_path / "r.h5", kind, layout="jointid")
+    with pytest.raises(RecordError, match=words):
+        read_hdf5(tmp_path / "r.h5", group="record")

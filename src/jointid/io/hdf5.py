@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from jointid.errors import RecordError, RecordFileNotFoundError, where
+from jointid.io.campaign import MAX_SAMPLES
 from jointid.io.channels import TIME_RTOL, Channels
 
 __all__ = ["read_hdf5", "write_hdf5", "FORMAT_NAME", "FORMAT_VERSION"]
@@ -72,6 +73,23 @@ def _attr_str(value: Any) -> str:
     if isinstance(value, bytes):
         return value.decode("utf-8")
     return str(value)
+
+
+def check_dataset(ds, path, channel: str, name: str | None = None) -> None:
+    """Raise a :class:`RecordError` unless ``ds`` holds real numbers (not text, compound or complex
+    values) within the record limit (:data:`jointid.io.campaign.MAX_SAMPLES` values), checked on
+    its type and shape before a byte is read (a compressed dataset may inflate far beyond its file)."""
+    name = ds.name if name is None else name
+    dt = ds.dtype
+    if dt.names is not None or dt.kind not in "iuf":
+        what = ("compound records" if dt.names is not None else "text" if dt.kind in "SUO" else
+                "complex numbers" if dt.kind == "c" else "booleans" if dt.kind == "b" else f"dtype {dt}")
+        raise RecordError(f"{where(path, channel=channel)}expected real numbers in dataset {name!r}, got {what} "
+                          f"(dtype {dt})")
+    size = int(np.prod(ds.shape, dtype=np.int64)) if ds.shape is not None else 0
+    if size > MAX_SAMPLES:
+        raise RecordError(f"{where(path, channel=channel)}dataset {name!r} holds {size} values (shape {ds.shape}), "
+                          f"more than the limit of {MAX_SAMPLES} samples of a record")
 
 
 def write_hdf5(
@@ -263,11 +281,7 @@ def read_hdf5(
                     f"{where(path, channel=name)}expected dataset {dpath!r} to be 1-D "
                     f"(n_samples,), got shape {ds.shape}"
                 )
-            if not (np.issubdtype(ds.dtype, np.number) and not np.issubdtype(ds.dtype, np.complexfloating)):
-                raise RecordError(
-                    f"{where(path, channel=name)}expected real numbers in dataset {dpath!r}, "
-                    f"got dtype {ds.dtype}"
-                )
+            check_dataset(ds, path, name, dpath)
             if n_ref is None:
                 n_ref = (dpath, ds.shape[0])
             elif ds.shape[0] != n_ref[1]:
@@ -295,6 +309,7 @@ def read_hdf5(
                     f"{where(path, channel='time')}expected dataset {tpath!r} of shape ({n},), "
                     f"got {shape}"
                 )
+            check_dataset(tds, path, "time", tpath)
             time = np.asarray(tds[()], dtype=np.float64)
         else:
             if "fs" in g.attrs:

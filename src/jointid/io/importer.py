@@ -127,12 +127,15 @@ def _read_hdf5_datasets(path: Path, channels: dict, fs=None, time=None) -> Chann
     import h5py
 
     data = {}
+    from .hdf5 import check_dataset
+
     try:
         with h5py.File(path, "r") as h5:
             for out, src in channels.items():
                 node = h5.get(src)
                 if not isinstance(node, h5py.Dataset):
                     raise RecordError(f"{path} [channel {out!r}]: no dataset {src!r} in the file")
+                check_dataset(node, path, out, src)  # real numbers within the record limit, before reading
                 x = np.asarray(node[()], dtype=float)
                 if x.ndim != 1:
                     x = np.squeeze(x)
@@ -144,6 +147,7 @@ def _read_hdf5_datasets(path: Path, channels: dict, fs=None, time=None) -> Chann
                 node = h5.get(time)
                 if not isinstance(node, h5py.Dataset):
                     raise RecordError(f"{path} [channel 'time']: no dataset {time!r} in the file")
+                check_dataset(node, path, "time", time)
                 t = np.asarray(node[()], dtype=float).ravel()
             else:
                 t = _uniform_time(next(iter(data.values())).size, fs, path, "no time dataset")
