@@ -36,6 +36,20 @@ Bias at low amplitude (noise floor)
     is unbiased to first order and the decay rate's error grows as ``s_C / |C|``.
     Windows whose amplitude is below ``snr_min`` standard errors (default 30: amplitude
     bias below 0.1 %) are flagged ``below_noise_floor`` and left out of the backbone.
+
+Band-limited decays without a force (:func:`band_limit`, :func:`modal_ringdown`)
+    An impact excites every mode and its force is often not recorded.  One mode is kept by a
+    zero-phase band-pass (Butterworth, forward and backward: no phase shift, so no shift of
+    the frequency or the amplitude in time; the squared magnitude response).  Inside the
+    pass band the filter leaves the decay of a mode as it is; its own start-up transient
+    (a few over the bandwidth, ``~ 1 / B`` seconds) is skipped, and so is the impact itself.
+    The noise that remains is that of the band; the noise floor of the windows is that of
+    the band-limited signal, and the windows' standard errors (which assume white noise) are
+    scaled by ``sqrt((fs / 2) / B)`` with ``B`` the filter's equivalent noise bandwidth: the
+    variance of a sinusoid's fit goes with the noise density at its frequency.  The backbone can be given against the amplitude of the
+    recorded signal itself (``measure="signal"``: for an accelerometer the first-harmonic
+    acceleration amplitude, the quantity a stepped-sine controller holds at that point)
+    or against the displacement amplitude.
 """
 
 from __future__ import annotations
@@ -50,7 +64,8 @@ from scipy import optimize
 from ..errors import JointidWarning, RecordError
 from .harmonics import check_signal, check_time_base
 
-__all__ = ["DecayFit", "fit_decay", "ringdown_force_state_mapping", "dominant_frequency"]
+__all__ = ["DecayFit", "fit_decay", "ringdown_force_state_mapping", "dominant_frequency", "band_limit",
+           "modal_ringdown", "monotone_check"]
 
 
 def _readonly(a):
@@ -120,18 +135,33 @@ class DecayFit:
     kind: str = "acceleration"
     n_cycles: float = 24.0
     snr_min: float = 30.0
+    signal_amplitude: np.ndarray | None = None  # |C|: amplitude of the recorded signal at the window's centre
+    signal_amplitude_stderr: np.ndarray | None = None
 
     def __len__(self):
         return int(self.t_centre.size)
 
-    def backbone(self, label="", include_floor=False):
-        """The windows above the noise floor as a :class:`~jointid.identify.backbone.Backbone` (``"ringdown"``)."""
+    def backbone(self, label="", include_floor=False, measure="displacement", amplitude_unit=None):
+        """The windows above the noise floor as a :class:`~jointid.identify.backbone.Backbone` (``"ringdown"``).
+
+        ``measure="signal"`` gives the amplitude of the recorded signal (an accelerometer's
+        first-harmonic acceleration amplitude) instead of the displacement's.
+        """
         from ..identify.backbone import Backbone
 
+        if measure not in ("displacement", "signal"):
+            raise RecordError(f"measure must be 'displacement' or 'signal', got {measure!r}")
         keep = np.ones(len(self), bool) if include_floor else ~self.below_noise_floor
-        return Backbone(self.amplitude[keep], self.omega_n[keep], self.zeta[keep], self.omega_stderr[keep],
-                        self.zeta_stderr[keep], "ringdown", self.amplitude_stderr[keep], label,
-                        {"t_centre": self.t_centre[keep].tolist(), "state_error": self.state_error[keep].tolist()})
+        if measure == "signal":
+            a, ase = self.signal_amplitude, self.signal_amplitude_stderr
+        else:
+            a, ase = self.amplitude, self.amplitude_stderr
+        meta = {"t_centre": self.t_centre[keep].tolist(), "state_error": self.state_error[keep].tolist(),
+                "measure": measure}
+        if amplitude_unit:
+            meta["amplitude_unit"] = amplitude_unit
+        return Backbone(a[keep], self.omega_n[keep], self.zeta[keep], self.omega_stderr[keep],
+                        self.zeta_stderr[keep], "ringdown", ase[keep], label, meta)
 
     def states(self, t, x=None):
         """Reconstructed ``(q, q', q'')`` at the samples of every window above the noise floor.
@@ -316,9 +346,12 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, ho
         warnings.warn(f"channel {channel!r}: every window of the decay is below the noise floor "
                       f"(amplitude < {snr_min:g} standard errors)", JointidWarning, stacklevel=2)
     coefs = np.column_stack([R[:, 0], R[:, 1], R[:, 2], wd])  # the fitted oscillation of each window
+    c_abs = np.abs(C)
+    c_se = np.array([np.sqrt(max(np.array([R[i, 0], R[i, 1]]) @ cov[:2, :2] @ np.array([R[i, 0], R[i, 1]]), 0.0))
+                     / max(c_abs[i], 1e-300) for i, cov in enumerate(covs)])
     return DecayFit(_readonly(R[:, 5]), _readonly(amp), _readonly(a_se), _readonly(wn), _readonly(w_se),
                     _readonly(zeta), _readonly(z_se), _readonly(errs), np.array(floor), _readonly(coefs),
-                    tuple(windows), kind, float(n_cycles), float(snr_min))
+                    tuple(windows), kind, float(n_cycles), float(snr_min), _readonly(c_abs), _readonly(c_se))
 
 
 def ringdown_force_state_mapping(decay: DecayFit, t, accel, terms="q + q'"):
@@ -358,3 +391,131 @@ def ringdown_force_state_mapping(decay: DecayFit, t, accel, terms="q + q'"):
         coef.append(c / scale)
         se.append(np.sqrt(np.clip(np.diag(cov), 0, None)) / scale)
     return np.array(coef), np.array(se), decay.amplitude[~decay.below_noise_floor]
+
+
+def band_limit(t, x, band, order=4, channel="accel") -> np.ndarray:
+    """Zero-phase Butterworth band-pass of ``x`` (forward and backward; module docstring).
+
+    Parameters
+    ----------
+    t, x : array
+        Uniform time base [s] and signal.
+    band : (float, float)
+        Pass band [Hz], ``0 < low < high <`` Nyquist.
+    order : int
+        Order of the Butterworth prototype (the forward-backward response is its square).
+
+    Raises
+    ------
+    RecordError
+        A band outside ``(0, Nyquist)`` or a record too short for the filter.
+    """
+    from scipy import signal as _signal
+
+    t = check_signal(t, "time")
+    check_time_base(t)
+    x = check_signal(x, channel, t.size)
+    fs = (t.size - 1) / (t[-1] - t[0])
+    lo, hi = (float(v) for v in band)
+    if not (0 < lo < hi < 0.5 * fs):
+        raise RecordError(f"channel {channel!r}: band {[lo, hi]} Hz must satisfy 0 < low < high < Nyquist "
+                          f"({0.5 * fs:.6g} Hz)")
+    sos = _signal.butter(int(order), [lo, hi], btype="bandpass", fs=fs, output="sos")
+    pad = 3 * (2 * sos.shape[0] + 1)
+    if x.size <= pad:
+        raise RecordError(f"channel {channel!r}: {x.size} samples are too few for the band-pass filter")
+    return _signal.sosfiltfilt(sos, x)
+
+
+def modal_ringdown(t, x, *, frequency_hz=None, band=None, half_width=None, order=4, settle_cycles=None,
+                   n_cycles=24.0, hop_cycles=6.0, snr_min=30.0, kind="acceleration", channel="accel",
+                   f_range=None) -> DecayFit:
+    """Backbone of one mode of a free decay without a force: band-limit, skip the impact, windowed fits.
+
+    Parameters
+    ----------
+    t, x : array
+        The whole record (the impact may be inside it).
+    frequency_hz : float, optional
+        The mode's frequency; the largest spectral peak in ``f_range`` by default.
+    band : (float, float), optional
+        Pass band [Hz]; default ``frequency_hz +- half_width``.
+    half_width : float, optional
+        Default: 15 % of ``frequency_hz`` (keep the neighbouring modes outside).
+    settle_cycles : float, optional
+        Periods skipped after the largest sample of the band-limited signal (the impact)
+        and before the end of the record, default ``max(8, 3 f / B)`` with ``B`` the band
+        width (the start-up of the forward and of the backward pass).
+    n_cycles, hop_cycles, snr_min, kind
+        As :func:`fit_decay`.
+
+    Returns
+    -------
+    DecayFit
+        With ``signal_amplitude``: the first-harmonic amplitude of the band-limited signal.
+    """
+    t = check_signal(t, "time")
+    check_time_base(t)
+    x = check_signal(x, channel, t.size)
+    f0 = float(frequency_hz) if frequency_hz is not None else dominant_frequency(t, x, f_range)
+    if band is None:
+        hw = 0.15 * f0 if half_width is None else float(half_width)
+        band = (f0 - hw, f0 + hw)
+    y = band_limit(t, x, band, order=order, channel=channel)
+    width = float(band[1] - band[0])
+    settle = float(settle_cycles) if settle_cycles is not None else max(8.0, 3.0 * f0 / width)
+    i_peak = int(np.argmax(np.abs(y)))
+    start = t[i_peak] + settle / f0
+    # the backward pass starts up at the end of the record as the forward pass does at its start
+    keep = t <= t[-1] - settle / f0
+    d = fit_decay(t[keep], y[keep], kind=kind, frequency_hz=f0, n_cycles=n_cycles, hop_cycles=hop_cycles,
+                  snr_min=snr_min, start=start, channel=channel)
+    # the windows' standard errors assume white noise; the band-limited noise has its power in the
+    # band: the variance of a sinusoid's fit goes with the noise density at f0, (fs / 2) / B_enb larger
+    k = np.sqrt(_noise_factor(t, band, order, f0))
+    from dataclasses import replace
+
+    a_se, w_se, z_se, c_se = (k * np.asarray(v) for v in (d.amplitude_stderr, d.omega_stderr, d.zeta_stderr,
+                                                          d.signal_amplitude_stderr))
+    return replace(d, amplitude_stderr=_readonly(a_se), omega_stderr=_readonly(w_se), zeta_stderr=_readonly(z_se),
+                   signal_amplitude_stderr=_readonly(c_se), below_noise_floor=np.asarray(d.amplitude < snr_min * a_se))
+
+
+def _noise_factor(t, band, order, f0) -> float:
+    """``(fs / 2) / B_enb`` of the forward-backward filter (equivalent noise bandwidth at ``f0``)."""
+    from scipy import signal as _signal
+
+    fs = (t.size - 1) / (t[-1] - t[0])
+    sos = _signal.butter(int(order), [float(band[0]), float(band[1])], btype="bandpass", fs=fs, output="sos")
+    f = np.linspace(0, fs / 2, 1 << 16)
+    _, h = _signal.sosfreqz(sos, worN=f, fs=fs)
+    g = np.abs(h) ** 2  # forward and backward
+    g0 = np.interp(f0, f, g)
+    b_enb = float(np.trapezoid(g**2, f)) / g0**2
+    return max((fs / 2) / b_enb, 1.0)
+
+
+def monotone_check(amplitude, omega, omega_stderr, n_sigma=2.0) -> dict:
+    """Is ``omega`` monotone in ``amplitude``?  Steps against the overall trend beyond ``n_sigma`` are counted.
+
+    The trend is the sign of the rank correlation; a step between neighbouring points (in
+    amplitude order) against it counts when it exceeds ``n_sigma`` times the standard error
+    of the difference.
+    """
+    from scipy import stats
+
+    a = np.asarray(amplitude, float)
+    w = np.asarray(omega, float)
+    se = np.asarray(omega_stderr, float)
+    order = np.argsort(a)
+    a, w, se = a[order], w[order], se[order]
+    if a.size < 3:
+        return {"monotone": None, "trend": None, "n_against": 0, "n_points": int(a.size)}
+    rho = float(stats.spearmanr(a, w)[0])
+    trend = 1.0 if rho > 0 else -1.0
+    d = np.diff(w) * trend
+    sd = np.hypot(se[1:], se[:-1])
+    against = d < -n_sigma * np.where(np.isfinite(sd), sd, 0.0)
+    return {"monotone": bool(not against.any()), "trend": "increasing" if trend > 0 else "decreasing",
+            "spearman": rho, "n_against": int(against.sum()), "n_points": int(a.size), "n_sigma": n_sigma,
+            "amplitude_range": [float(a.min()), float(a.max())]}
