@@ -4,8 +4,9 @@
     UNESP bolted lap-joint beam, sine dwells 17-20 Hz: each dwell's equivalent
     linearisation at its tip amplitude.  The recorded "force" is the shaker voltage, so
     the force is the voltage times the gain identified by the pooled fit of
-    :func:`jointid.app.public_data.unesp_sine_dwells`, and the response is advanced by
-    that example's channel-delay estimate (the voltage-to-force phase lag).
+    :func:`jointid.app.public_data.unesp_sine_dwells`, and the response is re-timed by
+    that example's channel-delay estimate (the response leads the voltage there, so it is
+    moved later).
 :func:`silverbox_backbone`
     Silverbox multilevel multisine: the backbone of each level's identified model
     (gain-free coefficients, bands from the fit's covariance) over that level's amplitude
@@ -70,7 +71,7 @@ def unesp_backbone(freqs=(17.0, 18.0, 19.0, 20.0), response="laser_velocity") ->
         V1, sv = _fundamental(rec.time, rec["voltage"], w)
         Y1, sy = _fundamental(rec.time, rec[response], w)
         p = 1 if response == "laser_velocity" else 2
-        X = Y1 / (1j * w) ** p * np.exp(1j * w * tau)  # the response advanced by |tau| (tau < 0: it leads)
+        X = Y1 / (1j * w) ** p * np.exp(1j * w * tau)  # q(t) = q_m(t + tau): moved later by |tau| when it leads
         sx = sy / w**p
         G = (gain * V1 + w**2 * X) / X
         gs = np.hypot(gain * sv / abs(X), abs(gain * V1) * sx / abs(X) ** 2)
@@ -86,8 +87,10 @@ def unesp_backbone(freqs=(17.0, 18.0, 19.0, 20.0), response="laser_velocity") ->
     pts = Backbone(np.array(a), np.array(w_eq), np.array(z), np.array(w_se), np.array(z_se), "stepped-sine",
                    np.array(a_se), "UNESP 5 Nm, tip", {"frequency_hz": fr, "gain": float(gain), "delay_s": float(tau)})
     notes = (
-        f"force = {gain:.4g} x shaker voltage (pooled-fit gain, tip-coordinate units), response advanced by "
-        f"{-1e3 * tau:.3f} ms (the example's phase diagnostic): the damping ratios inherit both choices",
+        f"force = {gain:.4g} x shaker voltage (pooled-fit gain, tip-coordinate units), response re-timed by the "
+        f"example's phase diagnostic tau = {1e3 * tau:.3f} ms (the response "
+        f"{'leads' if tau < 0 else 'lags'} the voltage by {abs(1e3 * tau):.3f} ms): the damping ratios inherit "
+        "both choices",
         "the stated errors hold the noise only, not the error of the gain and of the delay",
     )
     return PublicBackbones("UNESP bolted beam, sine dwells", (pts,), {"f1_hz_random_test": 18.75}, notes)

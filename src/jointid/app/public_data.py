@@ -55,6 +55,8 @@ __all__ = [
     "silverbox_benchmark",
     "unesp_sine_dwells",
     "f16_restoring_force",
+    "report_sections",
+    "write_report",
     "main",
 ]
 
@@ -174,6 +176,29 @@ class SilverboxMultilevelResult:
 
     def _repr_html_(self):
         return _pre(self.report())
+
+    def report_parts(self) -> tuple:
+        """``(paragraphs, tables)`` of this example in the HTML report (:func:`write_report`)."""
+        from ..report.formatting import format_pm, format_value
+
+        g = self.goals()
+        ref = SILVERBOX_REFERENCE
+        paras = [f"Terms {' + '.join(self.terms)} with the inertia column (the input is a voltage). Reference: "
+                 f"f1 = {ref['f1_hz']} Hz, damping ratio {100 * ref['zeta']:.2f} % (SOURCE.md).",
+                 f"Goals: f1 within 0.5 %: largest error {100 * g['max_f1_error']:.3f} % "
+                 f"({'met' if g['f1_ok'] else 'NOT met'}); damping ratio within 0.3 points: largest difference "
+                 f"{g['max_zeta_diff_points']:.3f} points ({'met' if g['zeta_ok'] else 'NOT met'}); k3/k spread over "
+                 f"20, 50 and 100 mV within 5 %: {100 * g['k3k_spread_20_50_100']:.2f} % "
+                 f"({'met' if g['k3k_ok'] else 'NOT met'})."]
+        rows = [{"level [mV]": r["level_mv"], "f1 [Hz]": format_pm(r["f1_hz"], r["f1_hz_stderr"]),
+                 "f1 error [%]": f"{r['f1_error_pct']:+.3f}",
+                 "damping ratio [%]": format_pm(100 * r["zeta"], 100 * r["zeta_stderr"]),
+                 "difference [points]": f"{r['zeta_diff_points']:+.3f}",
+                 "k3/k [1/V²]": format_pm(r["k3_over_k"], r["k3_over_k_stderr"]),
+                 "raw k2 [1/V]": format_value(r["raw_k2"], 3), "raw k3 [1/V²]": format_value(r["raw_k3"], 3)}
+                for r in self.table()]
+        return paras, [("Per level (value ± standard error); raw: the fit in the output coordinate with its mean "
+                        f"kept, beside the reference c1 = {ref['c1']}, c2 = {ref['c2']}", rows, None)]
 
     def plot(self, fig=None):
         from ..report.data_plots import plot_silverbox_levels
@@ -305,6 +330,29 @@ class SilverboxBenchmarkResult:
     def _repr_html_(self):
         return _pre(self.report())
 
+    def report_parts(self) -> tuple:
+        """``(paragraphs, tables)`` of this example in the HTML report (:func:`write_report`)."""
+        from ..report.formatting import format_pm
+
+        d = self.fit.derived()
+        paras = [f"Terms {' + '.join(self.fit.terms)} with the inertia column and a static offset, fitted on the "
+                 f"multisine realisations {list(self.estimation)}: f1 = {format_pm(*d['f1_hz'])} Hz, "
+                 f"damping ratio {format_pm(100 * d['zeta'][0], 100 * d['zeta'][1])} %, "
+                 f"k3/k = {format_pm(*d['k3/k'])} 1/V². The model is simulated from rest over the "
+                 "arrow (fixed-step RK4 on the band-limited interpolation of the measured input)."]
+        rows = [{"set": f"arrow, samples {self.test_window[0]}-{self.test_window[1]}",
+                 "RMS error [mV]": f"{self.rms_test_mv:.3f}", "note": f"output RMS {self.y_rms_test_mv:.1f} mV"},
+                {"set": "same window, linear model q + q'", "RMS error [mV]": f"{self.rms_test_linear_mv:.3f}",
+                 "note": ""}]
+        rows += [{"set": f"arrow, nonlinear_benchmarks split {k}", "RMS error [mV]": f"{v:.3f}", "note": ""}
+                 for k, v in self.rms_windows_mv.items()]
+        rows.append({"set": f"held-out multisine realisation(s) {list(self.validation)}",
+                     "RMS error [mV]": f"{self.rms_validation_mv:.3f}", "note": "last period"})
+        pub = [{"RMS error [mV]": f"{p['rms_mv']:.3f}", "method": p["method"], "test set": p["set"],
+                "source": p["source"]} for p in SILVERBOX_PUBLISHED]
+        return paras, [("Simulation error", rows, None),
+                       ("Published figures found (different test definitions: see docs/public-data.md)", pub, None)]
+
     def plot(self, ax=None):
         from ..report.data_plots import plot_simulation_error
 
@@ -381,10 +429,12 @@ class UnespDwellResult:
     delay_s : float
         Phase diagnostic: the channel time shift ``tau`` that best explains the per-dwell
         ``c/m`` as ``c0/m + tau (omega1^2 - omega^2)`` (negative: the response leads the
-        voltage, i.e. the shaker force lags its voltage).  It assumes a damping that does
-        not depend on the dwell, so read it as an order of magnitude.
+        voltage; a shaker force lagging its voltage would give a positive ``tau``).  It
+        assumes a damping that does not depend on the dwell, so read it as an order of
+        magnitude.
     corrected : GainFit or None
-        The fit repeated with the response advanced by ``delay_s``.
+        The fit repeated with the response re-timed by ``delay_s`` (moved later by
+        ``|delay_s|`` when it leads).
     """
 
     fit: GainFit = field(repr=False)
@@ -425,7 +475,8 @@ class UnespDwellResult:
             c = self.corrected
             lines.append(
                 f"  phase diagnostic: per-dwell c/m fits c0/m + tau (omega1^2 - omega^2) with tau = "
-                f"{1e3 * self.delay_s:.3f} ms (response leads the voltage); with the response shifted by it: f1 "
+                f"{1e3 * self.delay_s:.3f} ms (the response {'leads' if self.delay_s < 0 else 'lags'} the voltage); "
+                f"with the response shifted by it: f1 "
                 f"{c.f1_hz:.4f} Hz, k3/m {c.k3_over_m:.4g}, damping ratio per dwell "
                 + ", ".join(f"{100 * z:.3f} %" for z in c.damping_ratio())
                 + " at q_max " + ", ".join(f"{1e3 * q:.2f} mm" for q in c.q_max))
@@ -438,6 +489,40 @@ class UnespDwellResult:
 
     def _repr_html_(self):
         return _pre(self.report())
+
+    def report_parts(self) -> tuple:
+        """``(paragraphs, tables)`` of this example in the HTML report (:func:`write_report`)."""
+        from ..report.formatting import format_pm
+
+        g, d = self.goals(), self.fit.derived()
+        paras = [f"Sine dwells at {', '.join(f'{f:g}' for f in self.frequencies_hz)} Hz; the force column is the "
+                 f"shaker voltage (no force transducer), so the gain is identified; response {self.response!r}, "
+                 f"{self.n_harmonics} harmonics. f1 = {format_pm(*d['f1_hz'])} Hz, gain "
+                 f"{format_pm(*d['gain'])} (response units per V), k3/m = {format_pm(*d['k3/m'])} 1/(m² s²) "
+                 "(k3 > 0: softening).",
+                 f"Goals: per-dwell omega1 within 1 %: spread {100 * g['omega1_spread']:.2f} % "
+                 f"({'met' if g['omega1_ok'] else 'NOT met'}); softening k3/m > 3 standard errors "
+                 f"({'met' if g['softening_ok'] else 'NOT met'})."]
+        cm, cse = self.fit.per_record("c")
+        rows = [{"dwell [Hz]": f"{f:g}", "tip amplitude q_max [mm]": f"{1e3 * q:.2f}",
+                 "c/m [1/s]": format_pm(c, s)} for f, q, c, s in zip(self.frequencies_hz, self.fit.q_max, cm, cse)]
+        if self.corrected is not None:
+            z = self.corrected.damping_ratio()
+            for r, zi in zip(rows, z):
+                r["damping ratio, corrected [%]"] = f"{100 * zi:.3f}"
+            paras.append(f"Phase diagnostic: the per-dwell c/m fits c0/m + tau (omega1² - omega²) with tau = "
+                         f"{1e3 * self.delay_s:.3f} ms (the response {'leads' if self.delay_s < 0 else 'lags'} the "
+                         f"voltage by {abs(1e3 * self.delay_s):.3f} ms). With the response re-timed by tau: f1 "
+                         f"{self.corrected.f1_hz:.4f} Hz, k3/m {self.corrected.k3_over_m:.4g} 1/(m² s²). tau assumes "
+                         "a damping that does not depend on the dwell: a diagnostic, not a calibration.")
+        tables = [("Per dwell (uncorrected c/m ± standard error; damping ratio after the delay correction)", rows,
+                   None)]
+        if self.alternatives:
+            tables.append(("Sensitivity to the response channel and the harmonics", [
+                {"choice": a["label"], "f1 [Hz]": f"{a['f1_hz']:.4f}", "k3/m [1/(m² s²)]": f"{a['k3_over_m']:.4g}",
+                 "gain": f"{a['gain']:.4g}", "per-dwell omega1 spread [%]": f"{100 * a['omega1_spread']:.2f}"}
+                for a in self.alternatives], None))
+        return paras, tables
 
     def plot(self, ax=None):
         return self.fit.plot(ax=ax)
@@ -560,6 +645,26 @@ class F16RestoringForceResult:
     def _repr_html_(self):
         return _pre(self.report())
 
+    def report_parts(self) -> tuple:
+        """``(paragraphs, tables)`` of this example in the HTML report (:func:`write_report`)."""
+        tr = self.track
+        paras = [f"Relative motion across the right wing-payload joint integrated in the band {self.band[0]:g}-"
+                 f"{self.band[1]:g} Hz; restoring force per unit payload mass f = -acc_ms; resonance crossing "
+                 f"{self.resonance[0]:g}-{self.resonance[1]:g} s in {tr.t.size} windows of {tr.window_s:g} s "
+                 "fitted with f = k_eq x + c_eq v + f0."]
+        rows = [{"quantity": "largest relative displacement", "value": f"{1e3 * np.max(np.abs(self.x)):.3f} mm"},
+                {"quantity": "correlation of f with x at low velocity (|v| < 10 % of its maximum)",
+                 "value": f"{self.corr_low_velocity:.3f}"},
+                {"quantity": "largest k_eq (at its amplitude)",
+                 "value": f"{np.max(tr.k):.4g} 1/s² at {1e3 * tr.amplitude[np.argmax(tr.k)]:.3f} mm"},
+                {"quantity": "smallest k_eq (at its amplitude)",
+                 "value": f"{np.min(tr.k):.4g} 1/s² at {1e3 * tr.amplitude[np.argmin(tr.k)]:.3f} mm"},
+                {"quantity": "rank correlation of k_eq with amplitude", "value": f"{self.spearman_k_amplitude:.3f}"},
+                {"quantity": "k_eq of the 20 % largest over the 20 % smallest amplitudes",
+                 "value": f"{self.k_ratio_high_low:.3f}"}]
+        verdict = "softening with amplitude" if self.spearman_k_amplitude < 0 else "no softening"
+        return paras + [f"Verdict: {verdict}."], [("Equivalent stiffness against amplitude", rows, None)]
+
     def plot(self, fig=None):
         from ..report.data_plots import plot_restoring_force_surface
 
@@ -610,14 +715,15 @@ def f16_restoring_force(*, band=(3.0, 40.0), resonance=(150.0, 170.0), window_s=
 
 # ============================================================================ main
 def main(argv=None) -> int:
-    """Run every example, print the reports; with ``--out DIR`` also write figures and ``results.json``.
+    """Run every example, print the reports; with ``--out DIR`` also write ``report.html``, figures and ``results.json``.
 
     Returns 0 on success, 2 when the shared data folder is missing.
     """
     p = argparse.ArgumentParser(prog="jointid public-data",
                                 description="Identification examples on the public data sets in ../shared/data.",
                                 epilog="example: jointid public-data --out public-data-out")
-    p.add_argument("--out", type=Path, default=None, help="folder for the figures (PNG) and results.json")
+    p.add_argument("--out", type=Path, default=None,
+                   help="folder for report.html (self-contained), the figures (PNG) and results.json")
     p.add_argument("--only", choices=("silverbox", "benchmark", "unesp", "f16"), action="append",
                    help="run only these examples (repeatable)")
     args = p.parse_args(argv)
@@ -637,16 +743,72 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.out is not None:
-        from ..io.results import atomic_savefig, write_json
+        import matplotlib.pyplot as plt
+
+        from ..io.results import atomic_write, write_json
+        from ..report.html import figure_to_png
 
         args.out.mkdir(parents=True, exist_ok=True)
         write_json(args.out / "results.json", {k: r.summary() for k, r in results.items()})
+        pngs = {}
         for k, r in results.items():
             fig = r.plot()
             fig = fig if hasattr(fig, "savefig") else np.ravel(fig)[0].figure
-            atomic_savefig(fig, args.out / f"{k}.png", dpi=120)
-        print(f"figures and results.json written to {args.out}")
+            pngs[k] = figure_to_png(fig, dpi=120)  # drawn once: the same bytes in the file and the page
+            atomic_write(args.out / f"{k}.png", pngs[k])
+            plt.close(fig)
+        write_report(args.out / "report.html", results, pngs)
+        print(f"report.html, figures and results.json written to {args.out}")
     return 0
+
+
+#: Section title and figure caption of each example in the HTML report; an example not
+#: listed here gets its report's first line as the title.
+REPORT_TITLES = {
+    "silverbox": ("Silverbox, multisine at five levels (silverbox_multilevel_noel)",
+                  "f1, damping ratio and k3/k against level, with the reference (95 % intervals)"),
+    "benchmark": ("Silverbox benchmark, SNLS80mV.mat: simulation of the arrow",
+                  "measured arrow output and the simulation error"),
+    "unesp": ("UNESP bolted beam, sine dwells 17-20 Hz (shaker voltage as force)",
+              "per-dwell c/m and single-dwell f1 against the tip amplitude"),
+    "f16": ("F-16 GVT sine sweep, right wing-payload joint",
+            "stiffness and damping curves, restoring-force surface, k_eq against amplitude"),
+}
+
+
+def report_sections(results, pngs=None) -> list:
+    """HTML sections (:class:`jointid.report.html.Section`) of the examples' results, in order.
+
+    A result with a ``report_parts()`` method gives its ``(paragraphs, tables)``; any other
+    result gives the lines of its ``report()`` as paragraphs.  ``pngs`` maps an example's
+    name to its figure (PNG bytes).
+    """
+    from ..report.html import Section
+
+    pngs = pngs or {}
+    out = [Section("About these examples", [
+        "Worked examples of jointid on public measured data sets (../shared/data, each with its SOURCE.md); "
+        "docs/public-data.md discusses every number. The data are read in place and never copied; the UNESP data "
+        "are CC BY-NC-SA. Values are value ± standard error unless said otherwise."])]
+    for name, r in results.items():
+        title, caption = REPORT_TITLES.get(name, (r.report().splitlines()[0], name))
+        if hasattr(r, "report_parts"):
+            paras, tables = r.report_parts()
+        else:
+            paras, tables = [line.strip() for line in r.report().splitlines() if line.strip()], []
+        figs = [(caption, pngs[name])] if name in pngs else []
+        out.append(Section(title, list(paras), list(tables), figs))
+    return out
+
+
+def write_report(path, results, pngs=None) -> Path:
+    """Write the self-contained ``report.html`` of the examples (:func:`report_sections`)."""
+    from ..report.html import write_html
+
+    path = Path(path)
+    write_html(path, "jointid: worked examples on public measured data", report_sections(results, pngs),
+               intro=f"{len(results)} example(s): {', '.join(results)}.")
+    return path
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -15,7 +15,11 @@ gain).  The curve is the fundamental of the modal acceleration over the forcing,
 Errors reported
     * peak frequency and peak amplitude of the re-predicted curve against a reference
       peak: the measured dwells' (a parabola through the three largest points), or an
-      exact reference curve when one is known (the virtual rig);
+      exact reference curve when one is known (the virtual rig).  A measured peak is
+      quoted only where the dwells resolve it: the largest dwell is interior with a lower
+      dwell on each side (the dwells bracket the peak) and the dwells about it are at most
+      half the predicted -3 dB width apart.  Otherwise the report says so and gives no
+      peak error (``peak_resolved`` false, the errors ``None`` in ``summary()``);
     * the rms relative difference between each measured point and the model solved at
       that record's own frequency and forcing.
 
@@ -80,9 +84,13 @@ class Reprediction:
     stable : ndarray of bool, optional
         Stability of each curve point.
     peak_resolved : bool
-        Whether the measured dwells resolve the peak (spacing about the largest dwell at
-        most half the predicted -3 dB width); if not, the reference peak is the largest
-        dwell itself and the peak errors are bounded by the dwell spacing, not by the model.
+        Whether the measured dwells resolve the peak: they bracket it (``peak_bracketed``)
+        and their spacing about the largest dwell is at most half the predicted -3 dB
+        width.  If not, the reference peak is the largest dwell itself and no peak error
+        is quoted (the properties are ``nan``, ``summary()`` gives ``None``).
+    peak_bracketed : bool
+        Whether the largest measured dwell has a lower dwell on each side (a peak inside
+        the measured band); always true against an exact reference.
     bandwidth_hz : float
         Predicted -3 dB width of the peak [Hz].
     dwell_spacing_hz : float
@@ -107,6 +115,7 @@ class Reprediction:
     peak_resolved: bool = True
     bandwidth_hz: float = float("nan")
     dwell_spacing_hz: float = float("nan")
+    peak_bracketed: bool = True
 
     def __post_init__(self):
         for name in ("frequency_hz", "predicted", "measured_frequency_hz", "measured", "point_errors", "stable"):
@@ -127,11 +136,30 @@ class Reprediction:
 
     @property
     def peak_frequency_error_percent(self) -> float:
+        """Re-predicted against reference peak frequency [%]; ``nan`` where the dwells do not resolve the peak."""
+        if not self.peak_resolved:
+            return float("nan")
         return 100.0 * (self.peak_predicted[0] / self.peak_reference[0] - 1.0)
 
     @property
     def peak_amplitude_error_percent(self) -> float:
+        """Re-predicted against reference peak magnitude [%]; ``nan`` where the dwells do not resolve the peak."""
+        if not self.peak_resolved:
+            return float("nan")
         return 100.0 * (self.peak_predicted[1] / self.peak_reference[1] - 1.0)
+
+    @property
+    def peak_status(self) -> str:
+        """Why a peak error is, or is not, quoted (one phrase)."""
+        if self.exact is not None:
+            return "against the exact reference"
+        if not self.peak_bracketed:
+            return ("the dwells do not bracket the peak (the largest dwell, "
+                    f"{self.peak_reference[0]:.4g} Hz, has no lower dwell on one side)")
+        if not self.peak_resolved:
+            return (f"the dwells do not resolve the peak (spacing {self.dwell_spacing_hz:.3g} Hz about the largest "
+                    f"dwell, predicted -3 dB width {self.bandwidth_hz:.3g} Hz)")
+        return "resolved by the dwells"
 
     @property
     def point_rms_error_percent(self) -> float | None:
@@ -148,12 +176,14 @@ class Reprediction:
             "quantity": self.quantity,
             "reference": self.reference_kind,
             "peak_resolved": self.peak_resolved,
+            "peak_bracketed": self.peak_bracketed,
+            "peak_status": self.peak_status,
             "bandwidth_hz": self.bandwidth_hz,
             "dwell_spacing_hz": self.dwell_spacing_hz,
             "peak_predicted": {"frequency_hz": self.peak_predicted[0], "magnitude": self.peak_predicted[1]},
             "peak_reference": {"frequency_hz": self.peak_reference[0], "magnitude": self.peak_reference[1]},
-            "peak_frequency_error_percent": self.peak_frequency_error_percent,
-            "peak_amplitude_error_percent": self.peak_amplitude_error_percent,
+            "peak_frequency_error_percent": _finite(self.peak_frequency_error_percent),
+            "peak_amplitude_error_percent": _finite(self.peak_amplitude_error_percent),
             "point_rms_error_percent": self.point_rms_error_percent,
             "point_errors": None if self.point_errors is None else self.point_errors.tolist(),
             "folds_hz": list(self.folds_hz),
@@ -171,12 +201,13 @@ class Reprediction:
         if not np.isfinite(self.peak_predicted[0]):
             return (f"preload {self.preload}, F = {self.force_level}: no re-predicted peak inside the band"
                     + (f"; measured points rms {pts:.2f} %" if pts is not None else ""))
-        return (f"preload {self.preload}, F = {self.force_level}: peak {self.peak_predicted[0]:.4f} Hz "
-                f"({self.peak_frequency_error_percent:+.3f} %), magnitude {self.peak_predicted[1]:.4g} "
-                f"({self.peak_amplitude_error_percent:+.2f} %) vs {self.reference_kind}"
-                + ("" if self.peak_resolved else
-                   f" (largest dwell: spacing {self.dwell_spacing_hz:.3g} Hz does not resolve the "
-                   f"{self.bandwidth_hz:.3g} Hz peak)")
+        if self.peak_resolved:
+            peak = (f"peak {self.peak_predicted[0]:.4f} Hz ({self.peak_frequency_error_percent:+.3f} %), magnitude "
+                    f"{self.peak_predicted[1]:.4g} ({self.peak_amplitude_error_percent:+.2f} %) vs {self.reference_kind}")
+        else:
+            peak = (f"predicted peak {self.peak_predicted[0]:.4f} Hz, magnitude {self.peak_predicted[1]:.4g}; "
+                    f"{self.peak_status}: no peak error")
+        return (f"preload {self.preload}, F = {self.force_level}: {peak}"
                 + (f"; measured points rms {pts:.2f} %" if pts is not None else "")
                 + (f"; folds at {', '.join(f'{f:.3f}' for f in self.folds_hz)} Hz" if self.folds_hz else ""))
 
@@ -188,6 +219,10 @@ class Reprediction:
         from ..report.reprediction_plots import plot_reprediction
 
         return plot_reprediction([self], ax=ax, **kwargs)
+
+
+def _finite(x):
+    return float(x) if x is not None and np.isfinite(x) else None
 
 
 def identified_model(result, group):
@@ -359,7 +394,9 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
     width = float(above.max() - above.min()) if above.size > 1 else 0.0
     km = int(np.argmax(Hm))
     spacing = float(np.max(np.diff(fm[max(km - 1, 0): km + 2]))) if fm.size > 1 else np.inf
-    resolved = exact is not None or spacing <= 0.5 * width
+    # a measured peak needs a lower dwell on each side of the largest one, and dwells close enough
+    bracketed = exact is not None or bool(0 < km < fm.size - 1 and Hm[km - 1] < Hm[km] > Hm[km + 1])
+    resolved = exact is not None or (bracketed and spacing <= 0.5 * width)
     if exact is not None:
         peak_ref = exact.peak()
     elif resolved:
@@ -376,7 +413,7 @@ def repredict_group(result, group, *, n_points: int = 61, n_harmonics: int = 5, 
     qty = quantity or ("modal acceleration / modal force" if scale == 1.0 else "response / force")
     return Reprediction(float(group.force_level), model, f_all, m_all, fm, Hm, peak_pred, tuple(peak_ref), exact,
                         group.preload, Q, qty, np.asarray(errs) if errs else None, folds, stable, bool(resolved),
-                        width, spacing)
+                        width, spacing, bool(bracketed))
 
 
 def repredict_campaign(result, **kw) -> tuple:

@@ -125,6 +125,14 @@ class CampaignResult:
         ``settings.keep_flagged``)."""
         return [r for r in self.records if r.ok and r.flags]
 
+    @property
+    def misfits(self) -> list:
+        """Campaign-level regressions whose model does not fit the data to their errors
+        (:mod:`jointid.app.fit_checks`; ``results.json`` key ``fit_checks``)."""
+        from .fit_checks import fit_checks, misfits
+
+        return misfits(fit_checks(self))
+
     def group(self, preload, force_level) -> GroupResult:
         for g in self.groups:
             if g.preload == preload and g.force_level == force_level:
@@ -168,6 +176,7 @@ class CampaignResult:
             "adequacy": [self.adequacy[p].summary() if self.adequacy.get(p) is not None
                          else {"preload": p, "adequate": None, "error": self.adequacy_errors.get(p)}
                          for p in sorted(set(self.adequacy) | set(self.adequacy_errors), key=_group_key)],
+            "fit_checks": _fit_checks(self),
             "selection": [self.selections[p].summary() if self.selections.get(p) is not None
                           else {"preload": p, "selected": None, "error": self.selection_errors.get(p)}
                           for p in sorted(set(self.selections) | set(self.selection_errors), key=_group_key)],
@@ -187,6 +196,13 @@ class CampaignResult:
         from ..report.notebook import result_html
 
         return result_html(self)
+
+
+def _fit_checks(result) -> list:
+    from .fit_checks import fit_checks
+
+    return fit_checks(result)
+
 
 def _gain_free(gain, terms) -> PooledFit:
     """A :class:`PooledFit` of the gain-free coefficients (``theta / m``) of a gain fit."""
