@@ -1,7 +1,8 @@
 """Command line of jointid: thin wrappers around the public API.
 
-Exit codes: 0 success; 1 the run finished but some records failed or were flagged by the
-plausibility checks; 2 bad input (invalid arguments, manifest, configuration, record file
+Exit codes: 0 success; 1 the run finished with flagged results: some records failed or were
+flagged by the plausibility checks, or a model does not fit its data (``results.json``
+``fit_checks``); 2 bad input (invalid arguments, manifest, configuration, record file
 or output folder), checked before the work starts where it can be; 3 an unexpected internal
 error; 4 incomplete: the dask cluster (its scheduler) was lost mid-run, run the same command
 again (a study resumes from the campaigns done); 130 interrupted (Ctrl-C), with the previous
@@ -345,7 +346,12 @@ def _identify(args) -> int:
             print(f"failed: {line}", file=sys.stderr)
     for line in flagged_lines(result):  # also when quiet: a flagged record needs a look
         print(line, file=sys.stderr)
-    return EXIT_PARTIAL if result.failed or result.flagged else EXIT_OK
+    from .app.fit_checks import misfit_lines
+
+    misfit = misfit_lines(summary)
+    for line in misfit:  # also when quiet: a model that does not fit needs a look
+        print(line, file=sys.stderr)
+    return EXIT_PARTIAL if result.failed or result.flagged or misfit else EXIT_OK
 
 
 def _study(args) -> int:

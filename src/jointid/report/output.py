@@ -108,6 +108,8 @@ def _write_set(result, out, run_id, figures, html) -> dict:
     text = result.report() + "\n"
     if flagged_lines(result):
         text += "\n" + "\n".join(flagged_lines(result)) + "\n"
+    if misfit_text(summary):
+        text += "\n" + misfit_text(summary) + "\n"
     text += f"\nrun id {run_id}\n"
     paths = {
         "results": write_json(out / "results.json", summary),
@@ -133,6 +135,15 @@ def _write_set(result, out, run_id, figures, html) -> dict:
                    intro=f"{len(result.records)} records, {len(result.failed)} failed, {n_flagged} flagged.",
                    meta=page_meta(run_id))
     return paths
+
+
+def misfit_text(summary) -> str:
+    """One sentence naming the regressions whose model does not fit the data to their errors
+    (``results.json`` ``fit_checks``, :mod:`jointid.app.fit_checks`); empty when all fit."""
+    bad = [c for c in summary.get("fit_checks") or [] if c.get("fits") is False]
+    if not bad:
+        return ""
+    return "The model does not fit the data to their errors: " + "; ".join(c.get("message", "") for c in bad) + "."
 
 
 def _law_rows(summary) -> list:
@@ -276,6 +287,8 @@ def campaign_sections(result, figs, summary=None) -> list:
     head.tables += tables[at + 1:]
     if len(tables) == at + 1:
         head.paragraphs.append("No model adequacy verdict in these results.")
+    if misfit_text(summary):  # a regression whose model does not fit its data (results.json fit_checks)
+        head.paragraphs.insert(0, misfit_text(summary))
     laws = Section("Energy per cycle", ["U = alpha F^n over each group's records (seed Figs 15, 16); " + (
         "U per unit modal mass in m²/s² and F the modal joint force per unit modal mass in m/s²." if gain_free else
         "U in J and F, the modal joint force amplitude, in N (one kg of modal mass).")
