@@ -108,8 +108,9 @@ class ChannelDelay:
     Attributes
     ----------
     delay_s : float
-        Delay of the response channel behind the excitation channel [s] (negative: the
-        response leads, e.g. a shaker force lagging its voltage).
+        Delay of the response channel behind the excitation channel [s]: positive when the
+        response lags (anti-alias filters, a shaker force lagging its recorded voltage),
+        negative when it leads the excitation channel.
     stderr_s : float
         Standard error [s].
     reduced_chi2 : float
@@ -145,10 +146,20 @@ class ChannelDelay:
                 "law_order": self.law_order, "iterations": self.iterations, "steps_s": list(self.steps_s),
                 "source": self.source}
 
+    @property
+    def direction(self) -> str:
+        """What the sign means, as a phrase: ``"the response channel leads the excitation channel by 0.773 ms"``."""
+        ms = abs(1e3 * self.delay_s)
+        if self.delay_s < 0:
+            return f"the response channel leads the excitation channel by {ms:.4g} ms"
+        if self.delay_s > 0:
+            return f"the response channel lags the excitation channel by {ms:.4g} ms"
+        return "no delay between the channels"
+
     def report(self) -> str:
         if self.source == "given":
-            return f"channel delay {1e3 * self.delay_s:.4f} ms (given)"
-        return (f"channel delay {1e3 * self.delay_s:.4f} ± {1e3 * self.stderr_s:.2g} ms (response behind excitation; "
+            return f"channel delay {1e3 * self.delay_s:.4f} ms (given: {self.direction})"
+        return (f"channel delay {1e3 * self.delay_s:.4f} ± {1e3 * self.stderr_s:.2g} ms ({self.direction}; "
                 f"{self.n_dwells} dwells, damping law of order {self.law_order}, reduced chi2 "
                 f"{self.reduced_chi2:.3g} on {self.dof} dof, {self.iterations} iterations)")
 

@@ -30,9 +30,10 @@ Reduction
     :func:`~jointid.identify.regression.lstsq_from_reduced` -- the exact pooled least squares.
 
 Phase of the channels
-    A time shift ``tau`` of the response channel behind the excitation channel (``tau < 0``
-    when the response leads, e.g. because the shaker force lags the voltage through the
-    coil inductance; also vibrometer decoder latency, anti-alias filters) changes the
+    A time shift ``tau`` of the response channel behind the excitation channel (``tau > 0``
+    when the response lags: a shaker force lagging its recorded voltage through the coil
+    inductance, vibrometer decoder latency, anti-alias filters; ``tau < 0`` when it leads,
+    e.g. a time-base offset between separately recorded channels) changes the
     apparent per-record damping to about ``c_r/m = c/m + tau (omega1^2 - omega_r^2)``:
     largest away from resonance, of opposite signs below and above it, and possibly
     negative.  The stiffness and inertia (in-phase part) are hardly affected.  Pass a
