@@ -103,7 +103,8 @@ def test_summary_leads_with_the_selected_model_and_says_which_to_believe():
     assert "for comparison" in caption2.lower() and "the paper's cubic (Eq 21)" in caption2
     assert all(r["model"] == "the paper's cubic (Eq 21)" for r in rows2)
     # one sentence: which to believe and why (the selection and the adequacy verdict)
-    (sentence,) = paragraphs
+    sentence, note = paragraphs  # and what the adequacy table's columns are
+    assert note.startswith("Model adequacy: ")
     assert sentence.startswith("Preload 120.0: believe the micro-slip + cubic model")
     assert "reject the paper's cubic" in sentence and "does not hold" in sentence and "BIC" in sentence
     # the console leads with the same

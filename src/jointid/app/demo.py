@@ -229,8 +229,13 @@ class DemoResult:
     def report(self) -> str:
         """The acceptance checks as text (one line each)."""
         from ..report.demo_report import check_rows
+        from ..report.formatting import format_value
+        from ..report.summary import lead_lines
 
-        lines = [f"jointid demo in {self.out_dir}: {self.timings.get('total', float('nan')):.1f} s"]
+        lines = [f"jointid demo in {self.out_dir}: {format_value(self.timings.get('total'), 3)} s"]
+        for pr in self.preloads:  # which model to believe, the selected model, the paper's cubic beside it
+            lines += [f"  {line}" for line in lead_lines(pr.result.summary())]
+        lines.append("  Acceptance checks:")
         for row in check_rows(self):
             lines.append(f"  [{'ok' if row['passed'] else 'FAIL'}] {row['check']}: {row['value']}")
         if "html" in self.paths:

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..identify.hysteresis import hysteresis_loop
 from ..io.results import atomic_write
-from .formatting import format_percent, format_pm, format_value
+from .formatting import format_pm, format_value, unit_of
 from .html import Section, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_power_law
 from .rig_plots import (
@@ -281,9 +281,11 @@ def check_rows(demo) -> list:
     for key, ok in c["passed"].items():
         val = c["values"].get(value_key.get(key, key))
         if isinstance(val, dict):
-            val = ", ".join(f"{k}: {v:.4g}" if isinstance(v, float) else f"{k}: {v}" for k, v in val.items())
+            val = ", ".join(f"{format_value(k)}: {format_value(v)}" for k, v in val.items())
         elif isinstance(val, list):
-            val = ", ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in val)
+            val = ", ".join(format_value(v) for v in val)
+        else:
+            val = format_value(val)
         rows.append({"check": labels.get(key, key), "value": val, "passed": bool(ok)})
     return rows
 
@@ -320,10 +322,10 @@ def demo_sections(demo, figs) -> list:
             "preload [N]": pr.preload,
             "f1..f4 stuck [Hz]": ", ".join(f"{f:.2f}" for f in pr.rig.linear_frequencies_hz),
             "modal damping ratio [%]": 100 * float(pr.rig.model.zeta[0]),
-            "F_S [N m]": p.F_S, "K_T [N m/rad]": p.K_T, "chi": p.chi, "beta": p.beta,
-            "phi_max [rad]": p.phi_max, "k3 joint [N m/rad^3]": law.k3,
-            "3 + chi": p.dissipation_exponent,
-            "settle check max dev.": max(d.settle_deviation for d in pr.campaign.dwells),
+            "F_S [N m]": p.F_S, "K_T [N m/rad]": p.K_T, "chi [1]": p.chi, "beta [1]": p.beta,
+            "phi_max [rad]": p.phi_max, "k3 joint [N m/rad³]": law.k3,
+            "3 + chi [1]": p.dissipation_exponent,
+            "settle check max relative deviation [1]": max(d.settle_deviation for d in pr.campaign.dwells),
         })
     rig.tables.append(("rig parameters per preload", rows, None))
     rig.figures += fig("rig_joint_law") + fig("rig_joint_dissipation")
@@ -343,12 +345,13 @@ def demo_sections(demo, figs) -> list:
         shape_id = np.concatenate([pr.structure.phi_force[:1], pr.structure.phi_sensors[:, 0]])
         rows.append({
             "preload [N]": pr.preload,
-            "k_w updated / rig": up.get("k_w", np.nan) / rb.joint.k_w,
-            "k_t updated / rig": up.get("k_t", np.nan) / rb.joint.k_t,
-            "k_c updated / rig": up.get("k_c", np.nan) / rb.clamp_stiffness,
-            "phi_1 (force, 30, 42 cm) max rel. error": float(np.max(np.abs(shape_id / shape_true - 1))),
-            "random test: joint secant loss at RMS / max motion": " / ".join(
-                f"{v:.2e}" for k in ("rms", "max") for v in pr.rig.random_linearity(pr.campaign.random_joint_motion[k])),
+            "k_w updated / rig [1]": up.get("k_w", np.nan) / rb.joint.k_w,
+            "k_t updated / rig [1]": up.get("k_t", np.nan) / rb.joint.k_t,
+            "k_c updated / rig [1]": up.get("k_c", np.nan) / rb.clamp_stiffness,
+            "phi_1 (force, 30, 42 cm) max relative error [1]": float(np.max(np.abs(shape_id / shape_true - 1))),
+            "random test: joint secant loss at RMS / max motion [1]": " / ".join(
+                format_value(v, 3) for k in ("rms", "max")
+                for v in pr.rig.random_linearity(pr.campaign.random_joint_motion[k])),
         })
     lin.tables.append(("updated model against the rig", rows, None))
     lin.figures += fig("fig09_linear_frf")
@@ -370,10 +373,11 @@ def demo_sections(demo, figs) -> list:
     for pr in demo.preloads:
         for r in pr.repredictions:
             rows.append({"preload [N]": pr.preload, "F [N]": r.force_level,
-                         "peak f rig [Hz]": r.peak_exact[0], "peak f model [Hz]": r.peak_predicted[0],
-                         "f error [%]": r.peak_frequency_error_percent,
-                         "peak |a/F| rig": r.peak_exact[1], "peak |a/F| model": r.peak_predicted[1],
-                         "amplitude error [%]": r.peak_amplitude_error_percent,
+                         "peak f rig [Hz]": format_value(r.peak_exact[0], 7),
+                         "peak f model [Hz]": format_value(r.peak_predicted[0], 7),
+                         "f error [%]": format_value(r.peak_frequency_error_percent, 3),
+                         "peak |a/F| rig [(m/s²)/N]": r.peak_exact[1], "peak |a/F| model [(m/s²)/N]": r.peak_predicted[1],
+                         "amplitude error [%]": format_value(r.peak_amplitude_error_percent, 3),
                          "model": selected[pr.preload] or "seed cubic"})
     nl.tables.append(("peaks of the nonlinear FRFs", rows, None))
     nl.figures += fig("fig10_nonlinear_frf")
@@ -385,7 +389,18 @@ def demo_sections(demo, figs) -> list:
         "values. The rig's modal cubic coefficient alone is "
         + ", ".join(f"{pr.rig.modal_cubic_coefficient:.3g} ({_pl(pr.preload)} N)" for pr in demo.preloads)
         + "; the Iwan joint's softening adds to it."])
-    ident.tables.append(("Table 5 analogue", [r for pr in demo.preloads for r in pr.table5_rows()], None))
+    rows = []
+    for pr in demo.preloads:
+        for r in pr.table5_rows():
+            g = pr.group(r["F [N]"])
+            rows.append({"preload [N]": r["preload [N]"], "F [N]": r["F [N]"],
+                         "f1 identified [Hz]": format_pm(r["f1 identified [Hz]"], g.pooled.omega1_stderr / (2 * np.pi)),
+                         "f1 band average [Hz]": format_value(r["f1 band average [Hz]"], 7),
+                         "f1 rig [Hz]": format_value(r["f1 rig [Hz]"], 7), "f1 error [%]": format_value(r["f1 error [%]"], 3),
+                         "k3 identified [N/m³]": format_pm(r["k3 identified"], r["k3 stderr"]),
+                         "n (U = alpha F^n) [1]": format_pm(r["n (U = alpha F^n)"], g.power_law.n_stderr)
+                         if g.power_law is not None else "–"})
+    ident.tables.append(("Table 5 analogue (value ± standard error)", rows, None))
     ident.figures += fig("fig11_record") + fig("fig12_damping")
 
     laws = Section("Damping laws (seed Figs 13-14)")
@@ -394,10 +409,14 @@ def demo_sections(demo, figs) -> list:
         law = pr.damping_law
         if law is None:
             continue
-        rows.append({"preload [N]": pr.preload, **{f"c{k}": v for k, v in enumerate(law.coefficients)},
-                     "rig 2 zeta w1": 2 * float(pr.rig.model.zeta[0] * pr.rig.model.omega[0]),
-                     "law": law.report()})
-    laws.tables.append(("c(q_max) = c0 + c1 q_max + c2 q_max^2", rows, None))
+        se = list(law.stderr)
+        rows.append({"preload [N]": pr.preload,
+                     **{f"c{k} [{unit_of(f'c{k}')}]": format_pm(v, se[k] if k < len(se) else None)
+                        for k, v in enumerate(law.coefficients)},
+                     "rig 2 zeta w1 [N s/m]": 2 * float(pr.rig.model.zeta[0] * pr.rig.model.omega[0]),
+                     "fit": (f"chi²/dof {format_value(law.chi2 / law.dof, 3)}, {len(law.q_max)} records"
+                             if law.dof else f"{len(law.q_max)} records")})
+    laws.tables.append(("c(q_max) = c0 + c1 q_max + c2 q_max² (value ± standard error)", rows, None))
     laws.figures += [f for p in demo.preloads for f in fig(f"fig{13 + demo.preloads.index(p)}_damping_law_"
                                                                f"{_pl(p.preload)}")]
 
@@ -415,16 +434,19 @@ def demo_sections(demo, figs) -> list:
             if g.power_law is None:
                 continue
             ex = pr.exact_energy.get(str(g.force_level), {})
-            rows.append({"preload [N]": pr.preload, "F [N]": g.force_level, "n identified": g.power_law.n,
-                         "n stderr": g.power_law.n_stderr, "in [2, 3]": g.power_law.within_bounds,
-                         "n rig effective": ex.get("n_rig_effective"), "3 + chi (rig joint)": ex.get("n_iwan")})
+            rows.append({"preload [N]": pr.preload, "F [N]": g.force_level,
+                         "n identified [1]": format_pm(g.power_law.n, g.power_law.n_stderr,
+                                                       dof=len(g.power_law.force) - 2),
+                         "in [2, 3]": g.power_law.within_bounds,
+                         "n rig effective [1]": ex.get("n_rig_effective"), "3 + chi (rig joint) [1]": ex.get("n_iwan")})
     energy.tables.append(("power-law exponents", rows, None))
     rows = []
     for pr in demo.preloads:
         je = pr.joint_exponent or {}
-        rows.append({"preload [N]": pr.preload, "c0 [N s/m]": je.get("c0"), "m": je.get("m"),
-                     "m stderr": je.get("m_stderr"), "2 + m (identified)": je.get("exponent"),
-                     "3 + chi (rig joint)": pr.rig.model.laws[0].iwan.dissipation_exponent,
+        rows.append({"preload [N]": pr.preload, "c0 [N s/m]": je.get("c0"),
+                     "m [1]": format_pm(je.get("m"), je.get("m_stderr")),
+                     "2 + m (identified) [1]": format_pm(je.get("exponent"), je.get("m_stderr")),
+                     "3 + chi (rig joint) [1]": pr.rig.model.laws[0].iwan.dissipation_exponent,
                      "rig 2 zeta w1 [N s/m]": 2 * float(pr.rig.model.zeta[0] * pr.rig.model.omega[0])})
     energy.tables.append(("joint exponent from c = c0 + a q_max^m", rows, None))
     energy.figures += [f for k, p in enumerate(demo.preloads) for f in fig(f"fig{15 + k}_energy_{_pl(p.preload)}")]
@@ -449,10 +471,10 @@ def demo_sections(demo, figs) -> list:
     if failed:
         files.tables.append(("failed records", failed, None))
     appendix = Section("Appendix: acceptance checks and timings",
-                       [f"Total run time {demo.timings.get('total', float('nan')):.1f} s."])
+                       [f"Total run time {format_value(demo.timings.get('total'), 3)} s."])
     appendix.tables.append(("acceptance checks", check_rows(demo), ["check", "value", "passed"]))
-    appendix.tables.append(("run time per stage [s]", [{"stage": k, "seconds": v} for k, v in demo.timings.items()],
-                            ["stage", "seconds"]))
+    appendix.tables.append(("run time per stage [s]", [{"stage": k, "time [s]": format_value(v, 3)}
+                                                      for k, v in demo.timings.items()], ["stage", "time [s]"]))
     return [demo_summary_section(demo), overview, rig, lin, nl, ident, laws, energy, hyst, files, appendix]
 
 

@@ -97,7 +97,15 @@ def format_value(value, digits=4) -> str:
     v = float(value)
     if v == 0.0:
         return "0"
-    text = f"{v:.{min(int(digits), FLOAT_DIGITS)}g}"
+    digits = max(1, min(int(digits), FLOAT_DIGITS))
+    e = math.floor(math.log10(abs(v)))
+    if e >= 5 or e < -3:  # the power of ten of format_pm's shared exponent
+        text = f"{v:.{digits - 1}e}"
+        mant, exp = text.split("e")
+        if "." in mant:
+            mant = mant.rstrip("0").rstrip(".")
+        return f"{mant}e{int(exp)}"
+    text = f"{v:.{digits}g}"
     if "e" in text:
         mant, exp = text.split("e")
         text = f"{mant}e{int(exp)}"

@@ -240,7 +240,8 @@ def _group_columns(units) -> dict:
     F, (k3n, k3u) = units["F"][1], units["k3"]
     return {"preload": "preload", "force_level": f"F [{F}]", "n_records": "records", "f1_hz": "f1 [Hz]",
             "omega1": "omega1 [rad/s]", "k3": f"{k3n} [{k3u}]", "k3_stderr": f"se({k3n}) [{k3u}]",
-            "f1_hz_mean": "f1 band average [Hz]", "k3_mean": f"{k3n} band average [{k3u}]", "alpha": "alpha",
+            "f1_hz_mean": "f1 band average [Hz]", "k3_mean": f"{k3n} band average [{k3u}]",
+            "alpha": "alpha [m²/s² / (m/s²)^n]" if F == "V" else "alpha [J/N^n]",
             "n": "n [1]"}
 
 

@@ -285,8 +285,8 @@ def gain_rows(summary) -> list:
             continue
         v, se = g.get("force_gain"), g.get("force_gain_stderr")
         rows.append({"preload": str(g.get("preload")), f"F [{units['F'][1]}]": format_value(g.get("force_level")),
-                     "force gain g ± standard error": format_pm(v, se),
-                     "95 % interval": format_ci(g.get("force_gain_ci95"), se), "unit": "N/V",
+                     "force gain g ± standard error [N/V]": format_pm(v, se),
+                     "95 % interval [N/V]": format_ci(g.get("force_gain_ci95"), se),
                      "records": len(g.get("records") or [])})
     return rows
 
@@ -490,7 +490,9 @@ def lead_tables(summaries) -> tuple:
                    each(table5_rows), None))
     adq = each(adequacy_rows)
     if adq:
-        tables.append(("Model adequacy per preload (" + ADEQUACY_NOTE + ")", adq, None))
+        tables.append(("Model adequacy per preload (the columns are explained in the text above the tables)", adq,
+                       None))
+        paragraphs.append("Model adequacy: " + ADEQUACY_NOTE)
     sels = each(selection_rows)
     if sels:
         tables.append(("Model selection per preload", sels, None))
@@ -528,8 +530,8 @@ def lead_lines(summary) -> list:
     if gains:
         out.append("Identified force gain Q = g V per group (value ± standard error, 95 % interval):")
         F = next(k for k in gains[0] if k.startswith("F ["))
-        out += [f"  preload {r['preload']}, F = {r[F]} {F[3:-1]}: g = {r['force gain g ± standard error']} N/V"
-                f"  95 % {r['95 % interval']}" for r in gains]
+        out += [f"  preload {r['preload']}, F = {r[F]} {F[3:-1]}: g = {r['force gain g ± standard error [N/V]']} N/V"
+                f"  95 % {r['95 % interval [N/V]']}" for r in gains]
     return out
 
 
