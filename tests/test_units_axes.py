@@ -139,6 +139,12 @@ def check_layout(name, fig):
                 for t in texts:
                     if t.get_text() and _overlap(ob, t.get_window_extent(r)):
                         problems.append(f"{name}: offset text '{off.get_text()}' runs into the title '{t.get_text()}'")
+        fb = fig.bbox
+        for t in (ax.xaxis.label, ax.yaxis.label, ax.title):
+            if t.get_visible() and t.get_text():
+                b = t.get_window_extent(r)
+                if b.x0 < fb.x0 - 1 or b.y0 < fb.y0 - 1 or b.x1 > fb.x1 + 1 or b.y1 > fb.y1 + 1:
+                    problems.append(f"{name}: '{t.get_text()}' runs outside the figure")
         leg = ax.get_legend()
         if leg is not None and leg.get_visible():
             lb = leg.get_window_extent(r)
@@ -147,8 +153,8 @@ def check_layout(name, fig):
                 continue
             n = 0
             for line in ax.get_lines():
-                if line.get_marker() in (None, "None", "", " ") or not line.get_visible():
-                    continue
+                if not line.get_visible() or line.get_transform() != ax.transData:
+                    continue  # reference lines (axhline, axvline) are drawn in axes coordinates
                 xy = np.column_stack([line.get_xdata(), line.get_ydata()]).astype(float)
                 xy = xy[np.all(np.isfinite(xy), axis=1)]
                 if xy.size == 0:
@@ -156,7 +162,7 @@ def check_layout(name, fig):
                 pix = ax.transData.transform(xy)
                 n += int(np.sum((pix[:, 0] > lb.x0) & (pix[:, 0] < lb.x1) & (pix[:, 1] > lb.y0) & (pix[:, 1] < lb.y1)))
             if n:
-                problems.append(f"{name}: the legend covers {n} measured point(s)")
+                problems.append(f"{name}: the legend covers {n} point(s) of the data")
     return problems
 
 
@@ -282,6 +288,8 @@ def test_checks_catch_the_faults_they_look_for():
     ax.legend(["points"], loc="center")
     problems = check_layout("t", ax.figure)
     assert any("tick labels" in p for p in problems) and any("legend covers" in p for p in problems)
+    ax.set_ylabel("a label far too long for a figure two inches high, running off the canvas [m]")
+    assert any("outside the figure" in p for p in check_layout("t", ax.figure))
     assert check_error_measure("t", ax.figure)
 
 

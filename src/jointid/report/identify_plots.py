@@ -152,8 +152,8 @@ def plot_power_law(law, ax=None, label=None, gain_free=False):
     ax.loglog(FF, law(FF), "-", color=pts[0].get_color(),
               label=f"U = {law.alpha:.3g} F^{law.n:.3f} ± {law.n_stderr:.1g}, rms scatter {rms:.2g} %")
     if gain_free:
-        ax.set_xlabel("joint force amplitude per unit modal mass F/m [m/s²]")
-        ax.set_ylabel("energy per cycle per unit modal mass U/m [m²/s²]")
+        ax.set_xlabel("joint force amplitude per unit modal mass F/m [m/s²]", fontsize=9)
+        ax.set_ylabel("energy per cycle U/m [m²/s²]")
     else:
         ax.set_xlabel("joint force amplitude F [N] (modal)")
         ax.set_ylabel("energy per cycle U [J]")
@@ -180,11 +180,10 @@ def plot_hysteresis(loop, ax=None, label=None, show_identified=True, gain_free=F
         if shown:
             _mark(ax, "identified vs measured hysteresis loop", "rms error")
     ax.set_xlabel("q [m] (modal)")
-    ax.set_ylabel("(g u - q'' - omega1² q) [m/s²] (modal, per unit mass)" if gain_free
-                  else "Q - q'' - omega1² q [N] (modal)")
+    ax.set_ylabel("g u - q'' - omega1² q [m/s²]" if gain_free else "Q - q'' - omega1² q [N] (modal)")
     ax.grid(True, alpha=0.3)
     compact_ticks(ax)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     return ax
 
 

@@ -65,7 +65,7 @@ def plot_level_equality(adequacy, ax=None):
     if adequacy.equality:
         ax.set_xticks(np.arange(len(adequacy.equality[0].levels)), [str(v) for v in adequacy.equality[0].levels])
     ax.axhline(1.0, color="0.5", lw=0.8)
-    ax.set_xlabel("force level [manifest units]")
+    ax.set_xlabel("force level F [N]")
     ax.set_ylabel("parameter / common value [1]")
     ax.set_title(f"{tex_safe(adequacy.model_name)} model across force levels, preload {tex_safe(adequacy.preload)}",
                  fontsize=9)
