@@ -7,6 +7,7 @@ mix, and the next run removes what a killed run left behind.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import signal
 import subprocess
@@ -86,3 +87,78 @@ def test_sigkill_mid_run(campaign, tmp_path, delay):
     assert main(["identify", str(campaign), "--out", str(out), "--quiet", "--no-reprediction"]) == 0
     assert _consistent(out) not in (before, after)
     assert not list(tmp_path.glob(".out.*.tmp"))
+
+
+# ----------------------------------------------------------------------------- a lost scheduler
+
+
+def _free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _lines(path):
+    return path.read_text().count("\n") if path.is_file() else 0
+
+
+@pytest.mark.slow
+def test_study_losing_its_scheduler_says_so_and_keeps_the_last_complete_statistics(tmp_path):
+    """A real ``dask scheduler`` process killed mid-study: exit 4 with one line saying how many
+    campaigns are saved and that the same command resumes; the final files of the last complete
+    run stay; the rerun finishes the study without a lost or duplicated campaign."""
+    import os
+
+    from jointid.app.study import run_study
+    from jointid.io.campaign import toml_dumps
+    from test_study import small_plan
+    from test_study_output import _final_consistent
+
+    out = tmp_path / "out"
+    run_study(small_plan(campaigns=2), out, report=False)
+    before = {n: (out / n).read_bytes() for n in ("study.json", "statistics.csv")}
+    plan = tmp_path / "plan.toml"
+    plan.write_text(toml_dumps(small_plan(campaigns=8)))
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    procs = []
+    try:
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                       "--port", address.rsplit(":", 1)[1], "--no-dashboard"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                                       "--nworkers", "1", "--no-dashboard"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        study = subprocess.Popen([sys.executable, "-m", "jointid.cli", "study", str(plan), "--out", str(out),
+                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        t0 = time.monotonic()
+        while _lines(out / "campaigns.jsonl") < 3 and time.monotonic() - t0 < 180 and study.poll() is None:
+            time.sleep(0.05)
+        assert study.poll() is None, study.communicate()
+        os.kill(procs[0].pid, signal.SIGKILL)  # the scheduler dies with campaigns still to run
+        try:
+            _, stderr = study.communicate(timeout=120)
+        except subprocess.TimeoutExpired:  # pragma: no cover - a hang is a failure
+            study.kill()
+            pytest.fail("the study did not end within 120 s of losing its scheduler")
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+    saved = _lines(out / "campaigns.jsonl")
+    print(f"scheduler killed: exit {study.returncode}, {saved} campaigns saved; stderr: {stderr.strip()[-400:]}")
+    assert study.returncode == 4, stderr
+    assert "Traceback" not in stderr and "ERROR" not in stderr and "(100 %)" not in stderr, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("jointid study: incomplete: the dask cluster was lost"), last
+    assert f"{saved} of 8 campaigns are saved" in last and "run the same command again to resume" in last, last
+    assert "last complete run (2 campaigns)" in last, last
+    assert 3 <= saved < 8
+    assert {n: (out / n).read_bytes() for n in before} == before and _final_consistent(out)[0] == 2
+    res = run_study(plan, out, report=False)  # the same study again (here in this process): resumed
+    assert res.n_run == 8 - saved and not res.failed
+    indices = [json.loads(line)["index"] for line in (out / "campaigns.jsonl").read_text().splitlines()]
+    assert indices == list(range(8))
+    assert _final_consistent(out)[0] == 8

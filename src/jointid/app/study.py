@@ -995,7 +995,7 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
             new = map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
                             progress=progress, desc="campaigns", on_result=append, on_lost=lost)
     except ClusterLostError as exc:
-        head = str(exc).split(";")[0]
+        head = str(exc).split(" after ")[0]
         raise ClusterLostError(f"{head}; {saved()} and {_final_state(out)}; run the same command again to resume",
                                exc.done, exc.total) from None
     except KeyboardInterrupt:
