@@ -127,6 +127,9 @@ def _fig12(demo):
         ax.set_ylabel("c [N s/m]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
+    from .figure_meta import mark_comparison
+
+    mark_comparison(axes[0], "per-record damping vs c0 + a q_max^m", "stderr bars")
     return [("fig12_damping", "Seed Fig 12 analogue: per-record damping coefficient c (pooled regression, error "
              "bars: standard errors) against the response amplitude q_max; dashed: c0 + a q_max^m, whose 2 + m "
              "estimates the joint's dissipation exponent 3 + chi.", axes[0].figure)]
