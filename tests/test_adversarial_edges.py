@@ -190,3 +190,142 @@ def test_jointid_hdf5_record_of_the_wrong_kind(tmp_path, kind, words):
     _bad_h5(tmp_path / "r.h5", kind, layout="jointid")
     with pytest.raises(RecordError, match=words):
         read_hdf5(tmp_path / "r.h5", group="record")
+
+
+# ------------------------------------------------------------------------------ broadband records
+BB_FS, BB_N = 256.0, 2048
+BB_W1, BB_K3, BB_C = 2 * np.pi * 20.0, 4e5, 2 * 0.02 * 2 * np.pi * 20.0
+
+
+def _bb_multisine(rng, n_lines=240):
+    k = np.arange(1, n_lines + 1)
+    X = np.zeros(BB_N // 2 + 1, complex)
+    X[k] = np.exp(2j * np.pi * rng.random(k.size))
+    u = np.fft.irfft(X, BB_N)
+    return 75.0 * u / np.std(u)
+
+
+def _bb_response(u):
+    from jointid.identify.broadband import simulate_response
+    from jointid.identify.terms import library
+
+    q, _ = simulate_response(library("q + -q^3 + q'"), np.array([BB_W1**2, BB_K3, BB_C]), 1.0, u, BB_FS)
+    return q
+
+
+def _bb_campaign(folder, records):
+    """``records``: (name, excitation, u, q, period_s or None) -> a broadband campaign folder."""
+    from jointid.io.campaign import write_campaign, write_csv_record
+
+    entries = []
+    for name, excitation, u, q, period in records:
+        write_csv_record(folder / f"{name}.csv", np.arange(u.size) / BB_FS, {"force": u, "displacement": q})
+        e = {"file": f"{name}.csv", "preload": 1, "force_level": 1, "excitation": excitation}
+        if period is not None:
+            e["period_s"] = period
+        entries.append(e)
+    write_campaign(folder, "broadband edges", entries)
+    return folder
+
+
+def _ms_records(rng, n=3, periods=3):
+    out = []
+    for i in range(n):
+        u = np.tile(_bb_multisine(rng), periods)
+        q = _bb_response(u)
+        out.append((f"ms_{i}", "multisine", u, q + 1e-4 * np.std(q) * rng.standard_normal(q.size), BB_N / BB_FS))
+    return out
+
+
+def _bb_flags(res):
+    (g,) = res.broadband
+    return g, {f.name for _, f in g.flags}
+
+
+def test_clean_multisines_carry_no_flag(tmp_path):
+    res = _identify(_bb_campaign(tmp_path, _ms_records(np.random.default_rng(3))), force_gain="known")
+    g, names = _bb_flags(res)
+    assert not names and g.fit.derived()["f1_hz"][0] == pytest.approx(20.0, rel=1e-3)
+
+
+def test_multisine_with_the_wrong_period_is_flagged(tmp_path, capsys):
+    recs = [(n, e, u, q, 0.7 * p) for n, e, u, q, p in _ms_records(np.random.default_rng(4))]
+    folder = _bb_campaign(tmp_path / "c", recs)
+    g, names = _bb_flags(_identify(folder))
+    assert names == {"multisine_period"} and g.fit is None and not g.estimation
+    share = [f.values["non_periodic_share"] for _, f in g.flags]
+    assert len(share) == 3 and min(share) > 0.3
+    code, out, _ = _run(["identify", folder, "--out", tmp_path / "r", "--no-figures", "--no-reprediction"], capsys)
+    assert code == 1  # not a clean run
+    s = json.loads((tmp_path / "r" / "results.json").read_text())["broadband"][0]
+    assert {f["name"] for f in s["flags"]} == {"multisine_period"} and s["flags"][0]["file"].startswith("ms_")
+
+
+def test_multisine_period_beyond_the_record_and_plain_sine(tmp_path):
+    rng = np.random.default_rng(5)
+    recs = _ms_records(rng, n=2)
+    u = np.tile(_bb_multisine(rng), 3)
+    recs.append(("long", "multisine", u, _bb_response(u), 0.8 * u.size / BB_FS))  # a period and a bit, wrong
+    u = np.tile(_bb_multisine(rng), 3)
+    recs.append(("longer", "multisine", u, _bb_response(u), 2 * u.size / BB_FS))  # beyond the record
+    t = np.arange(3 * BB_N) / BB_FS
+    u = 20.0 * np.sin(2 * np.pi * 15.0 * t)
+    recs.append(("sine", "multisine", u, _bb_response(u), BB_N / BB_FS))
+    g, _ = _bb_flags(_identify(_bb_campaign(tmp_path, recs)))
+    by_file = {file: f.name for file, f in g.flags}
+    assert by_file["long.csv"] == "multisine_period" and by_file["sine.csv"] == "multisine_lines"
+    assert any("longer.csv" in m and "period_s" in m for m in g.failed)
+    assert g.estimation == ("ms_0.csv",) and g.held_out[0]["file"] == "ms_1.csv"  # the good ones still used
+    assert g.fit.derived()["f1_hz"][0] == pytest.approx(20.0, rel=1e-3)
+
+
+def test_white_noise_random_records_are_flagged_not_identified(tmp_path, capsys):
+    rng = np.random.default_rng(6)
+    recs = [(f"noise_{i}", "random", rng.standard_normal(8 * BB_N), rng.standard_normal(8 * BB_N), None)
+            for i in range(2)]
+    folder = _bb_campaign(tmp_path / "c", recs)
+    g, names = _bb_flags(_identify(folder))
+    assert names == {"random_coherence"} and g.fit is None
+    assert all(f.values["mean_coherence"] < 0.2 for _, f in g.flags)
+    code, _, _ = _run(["identify", folder, "--out", tmp_path / "r", "--no-figures", "--no-reprediction"], capsys)
+    assert code == 1
+
+
+def test_negative_damping_of_a_broadband_model_is_a_flag():
+    from types import SimpleNamespace
+
+    from jointid.app.broadband_records import model_flags
+
+    fit = SimpleNamespace(derived=lambda: {"zeta": (-0.075, 0.004), "f1_hz": (7.9, 0.1)})
+    states = [SimpleNamespace(band=(10.0, 30.0))]
+    names = {f.name for f in model_flags(fit, states)}
+    assert names == {"negative_damping", "resonance_outside_band"}
+    fit = SimpleNamespace(derived=lambda: {"zeta": (0.02, 0.001), "f1_hz": (20.0, 0.01)})
+    assert model_flags(fit, states) == []
+
+
+def test_campaign_mixing_record_types_with_broken_broadband_records(camp, tmp_path, capsys):
+    import shutil
+
+    from jointid.io.campaign import write_csv_record
+
+    folder = tmp_path / "mixed"
+    shutil.copytree(camp, folder)
+    rng = np.random.default_rng(8)
+    u = np.tile(_bb_multisine(rng), 3)
+    q = _bb_response(u)
+    q[100] = np.nan
+    write_csv_record(folder / "ms_nan.csv", np.arange(u.size) / BB_FS, {"force": u, "displacement": q})
+    write_csv_record(folder / "ms_short.csv", np.arange(BB_N // 2) / BB_FS, {"force": u[:BB_N // 2],
+                                                                              "displacement": q[:BB_N // 2]})
+    with open(folder / "campaign.toml", "a", encoding="utf-8") as fh:
+        for name in ("ms_nan", "ms_short"):
+            fh.write(f'\n[[record]]\nfile = "{name}.csv"\npreload = "p"\nforce_level = 9.0\n'
+                     f'excitation = "multisine"\nperiod_s = {BB_N / BB_FS}\n')
+    code, _, err = _run(["identify", folder, "--out", tmp_path / "r", "--no-figures", "--no-reprediction",
+                         "--quiet"], capsys)
+    assert code == 1 and "ms_nan.csv" in err and "ms_short.csv" in err, err
+    res = json.loads((tmp_path / "r" / "results.json").read_text())
+    assert len(res["groups"]) == 2 and all(g["k3"] > 0 for g in res["groups"])  # the stepped sines identified
+    (b,) = res["broadband"]
+    assert len(b["failed"]) == 2 and b["error"] == "no usable record"

@@ -351,7 +351,12 @@ def _identify(args) -> int:
     misfit = misfit_lines(summary)
     for line in misfit:  # also when quiet: a model that does not fit needs a look
         print(line, file=sys.stderr)
-    return EXIT_PARTIAL if result.failed or result.flagged or misfit else EXIT_OK
+    from .app.broadband_records import broadband_problem_lines
+
+    broadband = broadband_problem_lines(getattr(result, "broadband", ()))
+    for line in broadband:
+        print(line, file=sys.stderr)
+    return EXIT_PARTIAL if result.failed or result.flagged or broadband or misfit else EXIT_OK
 
 
 def _study(args) -> int:

@@ -34,7 +34,8 @@ import numpy as np
 from ..errors import IdentificationError, JointidError, JointidWarning, RecordError, where
 from ..identify.broadband import BroadbandForceStateMapping
 from ..io.campaign import read_record
-from ..signal.broadband import periodic_states, random_states
+from ..signal.broadband import multisine_flags, periodic_states, random_flags, random_states
+from ..signal.checks import Flag
 
 __all__ = ["BROADBAND", "BroadbandGroup", "split_broadband", "identify_broadband", "power_band"]
 
@@ -84,6 +85,10 @@ class BroadbandGroup:
         Records that could not be used, with the reason.
     error : str or None
         Why the group has no model.
+    flags : tuple of (str or None, Flag)
+        Plausibility flags with the numbers that triggered them: of a record (its file; the
+        record is left out of the fit and of the held-out test) or of the group's model
+        (``None``: e.g. a negative damping ratio, a resonance outside the excited band).
     """
 
     preload: object
@@ -93,10 +98,12 @@ class BroadbandGroup:
     held_out: tuple = ()
     failed: tuple = ()
     error: str | None = None
+    flags: tuple = ()
 
     def summary(self) -> dict:
         d = {"preload": self.preload, "force_level": self.force_level, "estimation": list(self.estimation),
-             "held_out": [dict(h) for h in self.held_out], "failed": list(self.failed), "error": self.error}
+             "held_out": [dict(h) for h in self.held_out], "failed": list(self.failed), "error": self.error,
+             "flags": [{"file": file, **f.summary()} for file, f in self.flags]}
         if self.fit is not None:
             d["model"] = self.fit.summary()
             derived = self.fit.derived()
@@ -106,8 +113,9 @@ class BroadbandGroup:
 
     def report(self) -> str:
         head = f"preload {self.preload}, F = {self.force_level}: "
+        flagged = [f"  flagged{'' if file is None else ' ' + str(file)}: {f.report()}" for file, f in self.flags]
         if self.fit is None:
-            return head + f"no broadband model ({self.error})"
+            return "\n".join([head + f"no broadband model ({self.error})"] + flagged)
         d = self.fit.derived()
         lines = [head + f"broadband model on {len(self.estimation)} record(s): f1 {d['f1_hz'][0]:.5g} Hz, "
                         f"zeta {100 * d['zeta'][0]:.4g} %"]
@@ -115,7 +123,7 @@ class BroadbandGroup:
             lines.append(f"  held out {h['file']}: free-run simulation error rms {h['rms_error']:.4g} "
                          f"({100 * h['relative_error']:.2f} % of the response rms)")
         lines += [f"  not used: {m}" for m in self.failed]
-        return "\n".join(lines)
+        return "\n".join(lines + flagged)
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(self.report())}</pre>"
@@ -187,8 +195,19 @@ def _group(key, members, settings):
         except JointidError as exc:
             failed.append(str(exc))
     ok = [s for s, _ in members if s.index in raw]
+    flags = []
+    for s in list(ok):
+        try:
+            found = record_flags(s, raw[s.index])
+        except JointidError as exc:
+            failed.append(str(exc))
+            ok.remove(s)
+            continue
+        if found:  # a flagged record is neither fitted nor used as a held-out test
+            flags += [(s.file, f) for f in found]
+            ok.remove(s)
     if not ok:
-        return BroadbandGroup(key[0], key[1], failed=tuple(failed), error="no usable record")
+        return BroadbandGroup(key[0], key[1], failed=tuple(failed), error="no usable record", flags=tuple(flags))
     multi = [s for s in ok if s.excitation == "multisine"]
     if multi and len(multi) < len(ok):
         est = multi
@@ -203,14 +222,15 @@ def _group(key, members, settings):
             failed.append(str(exc))
     est = [s for s in est if s.index in states]
     if not est:
-        return BroadbandGroup(key[0], key[1], failed=tuple(failed), error="no record to fit")
+        return BroadbandGroup(key[0], key[1], failed=tuple(failed), error="no record to fit", flags=tuple(flags))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", JointidWarning)
             fit = BroadbandForceStateMapping(settings.terms, fit_inertia=settings.force_gain == "unknown",
                                              offset=True).fit([states[s.index] for s in est]).result_
     except (JointidError, ValueError, np.linalg.LinAlgError) as exc:
-        return BroadbandGroup(key[0], key[1], failed=tuple(failed), error=str(exc))
+        return BroadbandGroup(key[0], key[1], failed=tuple(failed), error=str(exc), flags=tuple(flags))
+    flags += [(None, f) for f in model_flags(fit, [states[s.index] for s in est])]
     out = []
     for s in held:
         t, u, y, kind, fs = raw[s.index]
@@ -227,7 +247,49 @@ def _group(key, members, settings):
                         "samples": int(part.stop - part.start) if part.stop else int(t.size), "measured": kind})
         except (JointidError, ValueError, FloatingPointError) as exc:
             failed.append(f"{where(s.file, s.index)}simulation failed: {exc}")
-    return BroadbandGroup(key[0], key[1], fit, tuple(s.file for s in est), tuple(out), tuple(failed))
+    return BroadbandGroup(key[0], key[1], fit, tuple(s.file for s in est), tuple(out), tuple(failed),
+                          flags=tuple(flags))
+
+
+def record_flags(spec, raw) -> list:
+    """Plausibility flags of a broadband record (:func:`~jointid.signal.broadband.multisine_flags`,
+    :func:`~jointid.signal.broadband.random_flags`); a ``period_s`` that does not fit the record raises."""
+    t, u, y, kind, fs = raw
+    if spec.excitation == "multisine":
+        n_per, _ = _periods(spec, t.size, fs)
+        return multisine_flags(u, n_per)
+    lo, hi = power_band(u, fs)
+    band = (max(lo, 20.0 * fs / u.size), min(hi, 0.45 * fs))
+    return random_flags(u, y, fs, band, channels=("force", kind)) if band[0] < band[1] else []
+
+
+#: Standard errors by which a damping ratio must be negative to be flagged.
+ZETA_Z = 2.0
+
+
+def model_flags(fit, states) -> list:
+    """Flags of a group's broadband model: ``negative_damping`` (a damping ratio negative beyond
+    ``ZETA_Z`` standard errors: a passive joint dissipates) and ``resonance_outside_band`` (the
+    identified natural frequency outside the band the fitted records excite: it is extrapolated)."""
+    out = []
+    d = fit.derived()
+    if "zeta" in d:
+        z, se = (float(x) for x in d["zeta"][:2])
+        if np.isfinite(z) and z < 0 and (not np.isfinite(se) or -z > ZETA_Z * se):
+            out.append(Flag("negative_damping", f"damping ratio zeta = {z:.4g} ± {se:.2g} is negative: a passive "
+                                                "joint dissipates (a wrong period, unrelated channels, or a "
+                                                "record without a resonance)", {"zeta": z, "zeta_stderr": se}))
+    if "f1_hz" in d:
+        f1 = float(d["f1_hz"][0])
+        bands = [getattr(s, "band", None) for s in states]
+        bands = [b for b in bands if b is not None]
+        if bands:
+            lo, hi = min(float(b[0]) for b in bands), max(float(b[1]) for b in bands)
+            if not (np.isfinite(f1) and lo <= f1 <= hi):
+                out.append(Flag("resonance_outside_band", f"identified f1 = {f1:.5g} Hz lies outside the excited band "
+                                                          f"{lo:.4g}-{hi:.4g} Hz of the fitted records",
+                                {"f1_hz": f1, "band_low_hz": lo, "band_high_hz": hi}))
+    return out
 
 
 def _differentiate(x, fs, order):
@@ -255,3 +317,16 @@ def identify_broadband(pairs, settings) -> tuple:
         except IdentificationError as exc:  # one group never loses the others
             out.append(BroadbandGroup(key[0], key[1], error=str(exc)))
     return tuple(out)
+
+
+def broadband_problem_lines(groups) -> list:
+    """One line per flag, unusable record or group without a model among the broadband groups (empty
+    when none): a run with any of them is not a clean run."""
+    lines = []
+    for b in groups:
+        head = f"broadband preload {b.preload}, F = {b.force_level}: "
+        lines += [head + ("" if file is None else f"{file}: ") + f.report() for file, f in b.flags]
+        lines += [head + f"not used: {m}" for m in b.failed]
+        if b.error and not b.flags and not b.failed:
+            lines.append(head + f"no model ({b.error})")
+    return lines

@@ -741,3 +741,86 @@ def _cumtrapz(x, dt):
     out[0] = 0.0
     np.cumsum(0.5 * (x[1:] + x[:-1]) * dt, out=out[1:])
     return out - out.mean()
+
+
+# ------------------------------------------------------------------ plausibility of broadband records
+#: Share of a multisine record's force power off the lines of its period above which the record is
+#: not periodic with the period given (a wrong ``period_s``): noise at -10 dB of the force, far more
+#: than any usable test.
+NON_PERIODIC_LIMIT = 0.1
+#: Fewest excited lines a multisine must have to be identified over a band.
+MIN_LINES = 3
+#: Mean force-response coherence over the excitation band below which a random record's response
+#: is not driven by its force (unrelated noise, a wrong channel).
+MIN_COHERENCE = 0.5
+
+
+def multisine_flags(u, n_period: int, channel: str = "force") -> list:
+    """Plausibility flags of a multisine excitation ``u`` with ``n_period`` samples per period.
+
+    ``multisine_period``: more than :data:`NON_PERIODIC_LIMIT` of the force power (mean
+    removed) is not periodic with the period given -- over two or more whole periods after
+    the first, the power off the harmonics of the period; in a record of one whole period
+    and a part of the next, the difference between that part and the start of the period --
+    the period given is not the excitation's; ``multisine_lines``: fewer than
+    :data:`MIN_LINES` excited lines in a period (a plain sine is not a multisine).  A record
+    of exactly one period cannot be checked for periodicity (it is taken as steady).
+    """
+    from .checks import Flag
+
+    u = np.asarray(u, float)
+    n_per = int(n_period)
+    whole = u.size // n_per if n_per > 0 else 0
+    if whole < 1:
+        return []
+    use = max(whole - 1, 1)
+    seg = u[u.size - use * n_per:]
+    share = None
+    if use >= 2:
+        P = np.abs(np.fft.rfft(seg - seg.mean())) ** 2
+        P[0] = 0.0
+        total = float(P.sum())
+        share = 1.0 - float(P[::use].sum()) / total if total > 0 else 0.0
+        how = f"off the lines of a {n_per}-sample period over {use} periods"
+    elif u.size - n_per >= max(8, n_per // 10):  # one period and a part of the next: they must repeat
+        r = u.size - n_per
+        a, b = u[:r] - u.mean(), u[n_per:] - u.mean()
+        total = float(a @ a + b @ b)
+        share = float((a - b) @ (a - b)) / total if total > 0 else 0.0
+        how = f"in the {r} samples after a {n_per}-sample period that differ from its start"
+    flags = []
+    if share is not None and share > NON_PERIODIC_LIMIT:
+        flags.append(Flag("multisine_period", f"{100 * share:.3g} % of the {channel} power lies {how} (at most "
+                                              f"{100 * NON_PERIODIC_LIMIT:g} % for a periodic excitation): "
+                                              "period_s is not the excitation's period",
+                          {"non_periodic_share": share, "samples_per_period": n_per, "whole_periods": whole}))
+    avg = seg.reshape(use, n_per).mean(axis=0)
+    lines = excited_lines(np.fft.rfft(avg - avg.mean()))
+    if lines.size < MIN_LINES:
+        flags.append(Flag("multisine_lines", f"the {channel} excites {lines.size} line(s) of the period (at least "
+                                             f"{MIN_LINES} for a broadband fit): a plain sine, not a multisine",
+                          {"excited_lines": int(lines.size)}))
+    return flags
+
+
+def random_flags(u, y, fs, band, channels=("force", "response")) -> list:
+    """Plausibility flags of a random record: ``random_coherence`` when the mean magnitude-squared
+    coherence of force and response over ``band`` is below :data:`MIN_COHERENCE` (the response is
+    not driven by this force: unrelated noise or a wrong channel)."""
+    from .checks import Flag
+
+    u = np.asarray(u, float)
+    y = np.asarray(y, float)
+    nper = int(min(max(64, u.size // 16), u.size))
+    f, coh = ssignal.coherence(u - u.mean(), y - y.mean(), fs=fs, nperseg=nper)
+    sel = (f >= band[0]) & (f <= band[1])
+    if not np.any(sel):
+        return []
+    mean = float(np.mean(coh[sel]))
+    if mean < MIN_COHERENCE:
+        return [Flag("random_coherence", f"mean coherence of {channels[0]!r} and {channels[1]!r} over "
+                                         f"{band[0]:.4g}-{band[1]:.4g} Hz is {mean:.3g} (at least {MIN_COHERENCE:g}): "
+                                         "the response is not driven by this excitation",
+                     {"mean_coherence": mean, "band_hz": [float(band[0]), float(band[1])],
+                      "segments": int(u.size // nper)})]
+    return []
