@@ -131,6 +131,8 @@ def check_page(path, gain_free=False):
                 if iq is None or len(row) <= iu or row[iq] in ("model", "–"):
                     continue
                 q = re.sub(r" \(at zero amplitude\)$", "", row[iq])
+                if q in ("c1", "c2") and row[iu].startswith("N s/m^"):  # c1 q_max^p: the fitted power
+                    continue
                 if q in ROW_UNITS:
                     assert row[iu] == ROW_UNITS[q], f"{where}: {q} in {row[iu]!r}, expected {ROW_UNITS[q]}"
                 elif not row[1:] or "not identified" not in " ".join(row):
@@ -277,3 +279,24 @@ def test_demo_report_and_console_carry_units(tmp_path, capsys):
     check_page(tmp_path / "demo" / "report.html")
     check_console(text)
     assert "Selected model: micro-slip + cubic" in text or "Selected model:" in text
+
+
+def test_backbone_console_carries_units(identified, tmp_path, capsys):
+    folder, _ = identified["known"]
+    main(["backbone", str(folder / "results.json"), "--out", str(tmp_path / "bb")])
+    text = capsys.readouterr().out
+    headers = [re.split(r"\s{2,}", line.strip()) for line in text.splitlines() if "a [m]" in line]
+    assert headers, text[:500]
+    for header in headers:
+        assert header == ["a [m]", "f ± standard error [Hz]", "zeta ± standard error [%]"]
+        for h in header:
+            check_header(h, False, "backbone console")
+
+
+def test_modal_console_carries_units(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text('[structure]\nmodel = "seed-bolted-beam"\npreload = 120\n'
+                                     '[structure.sensors]\naccel_42 = 0.42\n')
+    main(["modal", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")])
+    text = capsys.readouterr().out
+    assert re.search(r"FE frequencies \[Hz\]: 26\.4", text), text
+    assert re.search(r"at x = 0\.42 m", text)

@@ -28,7 +28,7 @@ from .formatting import (
 
 __all__ = ["coefficient_note", "model_rows", "table5_rows", "band_resolution", "adequacy_rows", "selection_rows",
            "selected_model_rows", "model_choice_lines", "gain_rows", "run_units", "parameter_unit", "message_kind",
-           "group_messages", "warning_rows", "error_lines", "summary_lines", "console_lines", "lead_lines", "lead_tables", "Z95",
+           "group_messages", "warning_rows", "error_lines", "backbone_lines", "summary_lines", "console_lines", "lead_lines", "lead_tables", "Z95",
            "ADEQUACY_NOTE"]
 
 Z95 = 1.959963984540054
@@ -584,3 +584,18 @@ def console_lines(summary) -> list:
     for m in summary.get("models") or []:
         out += [f"preload {m.get('preload')} model: {w_}" for w_ in m.get("warnings") or []]
     return out
+
+
+def backbone_lines(backbone, max_rows=12) -> list:
+    """A backbone curve as a text table: amplitude ``a`` in m, natural frequency in Hz and
+    damping ratio in %, each value with its standard error (at most ``max_rows`` points,
+    spread over the amplitude range)."""
+    b = backbone
+    n = len(b)
+    head = (f"Backbone ({b.source}{', ' + b.label if b.label else ''}): {n} points, "
+            f"{format_value(b.decades(), 3)} decades of amplitude")
+    idx = range(n) if n <= max_rows else np.unique(np.linspace(0, n - 1, max_rows).astype(int))
+    rows = [{"a [m]": format_value(b.amplitude[i], 4),
+             "f ± standard error [Hz]": format_pm(b.frequency_hz[i], b.omega_stderr[i] / (2 * np.pi)),
+             "zeta ± standard error [%]": format_pm(100 * b.zeta[i], 100 * b.zeta_stderr[i])} for i in idx]
+    return [head] + (["  " + line for line in text_table(rows).splitlines()] if rows else [])
