@@ -160,10 +160,12 @@ class PreloadBackbones:
         }
 
     def report(self) -> str:
+        from ..report.summary import backbone_lines
+
         lines = [f"Preload {self.preload}:"]
         for b in (self.model, self.stepped, self.phase_resonance) + tuple(self.ringdown):
             if b is not None:
-                lines.append("  " + b.report().replace("\n", "\n  "))
+                lines += ["  " + line for line in backbone_lines(b)]
         for f in self.joint_laws.values():
             lines.append("  " + f.report().replace("\n", "\n  "))
         for k, e in self.errors.items():
