@@ -337,6 +337,10 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
         settings = replace(settings, **kw)
     if not isinstance(campaign, Campaign):
         campaign = load_campaign(campaign)
+    from .firstharmonic_campaign import identify_first_harmonic_campaign, is_first_harmonic_campaign
+
+    if is_first_harmonic_campaign(campaign):  # stepped-sine controller exports: one line per frequency
+        return identify_first_harmonic_campaign(campaign, settings)
     from .model_checks import campaign_adequacy, identify_auto, is_auto
 
     if is_auto(settings.terms):  # the model chosen by the data (jointid.identify.selection)

@@ -103,6 +103,8 @@ def flagged_lines(result) -> list:
 
 
 def _write_set(result, out, run_id, figures, html) -> dict:
+    if hasattr(result, "write_set"):  # a result of another record type (first harmonics) writes its own files
+        return result.write_set(out, run_id, figures=bool(figures), html=html)
     summary = result.summary()
     summary["run_id"] = run_id
     text = result.report() + "\n"

@@ -1,0 +1,418 @@
+"""Identify a campaign of first-harmonic records (stepped-sine controller exports) and force-free ring-downs.
+
+A campaign whose records are ``excitation = "first-harmonic"`` (one line per frequency,
+:mod:`jointid.io.firsth`), possibly with ``excitation = "ringdown"`` records that have no
+force column, is identified per preload by :mod:`jointid.identify.firstharmonic`:
+
+1. every first-harmonic record is read and checked; one that cannot be read fails alone;
+2. the pair of amplitude laws is chosen by leave-one-level-out prediction
+   (:func:`~jointid.identify.firstharmonic.select_laws`) unless given;
+3. the single-nonlinear-mode model is fitted on all lines of all levels together, every
+   level is re-predicted from its measured forces, each level is also predicted from the
+   other levels alone (leave one level out), and the residuals are checked;
+4. the ring-downs are band-limited around the identified mode and their backbones drawn
+   against the same amplitude, the first-harmonic acceleration amplitude at the driving
+   point (``accel`` column of the ring-down record: the driving point's accelerometer).
+
+The result writes the identify set (``results.json`` with the identify keys, ``report.txt``,
+``report.html``, figures) through :func:`jointid.report.output.write_results`.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import IdentificationError, JointidError, JointidWarning, where
+from ..identify.firstharmonic import (
+    AMPLITUDE_UNIT,
+    DEFAULT_CANDIDATES,
+    FirstHarmonicLevel,
+    adequacy,
+    fit_first_harmonic,
+    leave_one_level_out,
+    select_laws,
+)
+from ..io.campaign import Campaign, load_campaign
+from ..signal.ringdown import modal_ringdown, monotone_check
+
+__all__ = ["is_first_harmonic_campaign", "identify_first_harmonic_campaign", "FirstHarmonicCampaignResult",
+           "FirstHarmonicPreload", "RecordOutcome", "ringdown_backbone"]
+
+
+def is_first_harmonic_campaign(campaign: Campaign) -> bool:
+    """Whether the campaign holds first-harmonic records (with, at most, force-free ring-downs besides).
+
+    Raises
+    ------
+    IdentificationError
+        First-harmonic records mixed with time records of stepped sines or broadband tests.
+    """
+    kinds = {r.excitation for r in campaign.records}
+    if "first-harmonic" not in kinds:
+        return False
+    other = kinds - {"first-harmonic", "ringdown"}
+    if other:
+        raise IdentificationError(f"{campaign.root / 'campaign.toml'}: first-harmonic records are identified on "
+                                  f"their own (with ring-downs); this campaign also has {sorted(other)} records: "
+                                  f"put them in a campaign of their own")
+    return True
+
+
+@dataclass(frozen=True)
+class RecordOutcome:
+    """What became of one record of a first-harmonic campaign."""
+
+    spec: object
+    ok: bool
+    error: str | None = None
+    kind: str = "first-harmonic"
+    n_lines: int = 0
+    flags: tuple = ()
+    warnings: tuple = ()
+
+    def summary(self) -> dict:
+        s = self.spec
+        return {"index": s.index, "file": s.file, "preload": s.preload, "force_level": s.force_level,
+                "excitation": s.excitation, "control": s.extra.get("control", "force") if self.kind ==
+                "first-harmonic" else None, "status": "ok" if self.ok else "failed", "error": self.error,
+                "n_lines": self.n_lines, "flags": [], "warnings": list(self.warnings)}
+
+
+def ringdown_backbone(t, accel, frequency_hz, label="", **options):
+    """Band-limited ring-down backbone of the mode near ``frequency_hz``, against the acceleration amplitude.
+
+    Returns ``(Backbone, DecayFit, monotone check dict)``.
+    """
+    d = modal_ringdown(t, accel, f_range=(0.85 * frequency_hz, 1.15 * frequency_hz), **options)
+    b = d.backbone(label=label, measure="signal", amplitude_unit=AMPLITUDE_UNIT)
+    mono = monotone_check(b.amplitude, b.omega, b.omega_stderr) if len(b) >= 3 else {"monotone": None}
+    floor = d.signal_amplitude[d.below_noise_floor]
+    mono["noise_floor_amplitude"] = float(floor.max()) if floor.size else None
+    return b, d, mono
+
+
+@dataclass(frozen=True, eq=False)
+class FirstHarmonicPreload:
+    """The identification of one preload: fit, selection, leave-one-level-out, adequacy, ring-downs."""
+
+    preload: object
+    fit: object = None  # FirstHarmonicFit
+    selection: dict | None = None
+    lolo: tuple = ()
+    adequacy: dict | None = None
+    ringdowns: tuple = ()  # (record index, Backbone, DecayFit summary, monotone dict)
+    errors: dict = field(default_factory=dict)
+
+    def backbones(self):
+        """:class:`~jointid.app.backbones.PreloadBackbones`: model, stepped-sine lines, ring-downs."""
+        from .backbones import PreloadBackbones
+
+        model = stepped = None
+        if self.fit is not None:
+            model = self.fit.backbone(label=f"preload {self.preload} model")
+            stepped = self.fit.line_points(label=f"preload {self.preload} lines")
+        return PreloadBackbones(self.preload, model=model, stepped=stepped,
+                                ringdown=tuple(r[1] for r in self.ringdowns), errors=dict(self.errors))
+
+    def lolo_summary(self) -> list:
+        out = []
+        for e in self.lolo:
+            if "error" in e:
+                out.append({"label": e["label"], "error": e["error"]})
+            else:
+                out.append({"label": e["label"], "peak": e["peaks"], "amplitude_rms_rel": e["amplitude_rms_rel"],
+                            "phase_rms_deg": e["phase_rms_deg"], "complex_rms_rel": e["complex_rms_rel"]})
+        return out
+
+    def summary(self) -> dict:
+        return {"preload": self.preload, "fit": None if self.fit is None else self.fit.summary(),
+                "selection": self.selection, "leave_one_level_out": self.lolo_summary(), "adequacy": self.adequacy,
+                "ringdowns": [{"index": i, "decay": d, "monotone": m, "backbone": b.summary()}
+                              for i, b, d, m in self.ringdowns],
+                "errors": dict(self.errors)}
+
+
+@dataclass(frozen=True, eq=False)
+class FirstHarmonicCampaignResult:
+    """Everything identified from a first-harmonic campaign (``summary()`` is ``results.json``)."""
+
+    name: str
+    root: str
+    settings: object  # IdentifySettings (only keep_flagged is used)
+    records: tuple
+    preloads: tuple
+    laws: tuple | None = None
+    groups: tuple = ()  # no force-state groups: the keys of a stepped-sine identification stay empty
+    models: dict = field(default_factory=dict)
+
+    @property
+    def failed(self):
+        return [r for r in self.records if not r.ok]
+
+    @property
+    def flagged(self):
+        return [r for r in self.records if r.ok and r.flags]
+
+    @property
+    def backbones(self):
+        from .backbones import CampaignBackbones
+
+        return CampaignBackbones(tuple(p.backbones() for p in self.preloads))
+
+    def preload(self, label) -> FirstHarmonicPreload:
+        for p in self.preloads:
+            if p.preload == label:
+                return p
+        raise KeyError(label)
+
+    def summary(self) -> dict:
+        from .. import __version__
+
+        bb = self.backbones.summary()
+        for entry in bb["preloads"]:
+            entry["amplitude_unit"] = AMPLITUDE_UNIT
+            for key in ("model", "stepped_sine"):
+                if entry.get(key):
+                    entry[key]["amplitude_unit"] = AMPLITUDE_UNIT
+            for r in entry.get("ringdown") or []:
+                r["amplitude_unit"] = AMPLITUDE_UNIT
+        fits = [(p.preload, p.fit) for p in self.preloads if p.fit is not None]
+        return {
+            "jointid_version": __version__,
+            "campaign": {"name": self.name, "folder": self.root},
+            "record_type": "first-harmonic",
+            "settings": {"record_type": "first-harmonic", "laws": list(self.laws) if self.laws else "auto",
+                         "amplitude": AMPLITUDE_UNIT},
+            "records": [r.summary() for r in self.records],
+            "groups": [],
+            "damping_law": [],
+            "power_law": [],
+            "models": [{"preload": p, **f.summary()} for p, f in fits]
+            + [{"preload": p.preload, "omega1": None, "error": "; ".join(p.errors.values())}
+               for p in self.preloads if p.fit is None],
+            "n_records": len(self.records),
+            "n_failed": len(self.failed),
+            "reprediction": {"groups": [{"preload": p, **pr.summary()} for p, f in fits for pr in f.predictions],
+                             "loops": []},
+            "structures": [],
+            "channel_delay": {"delay_s": None, "error": "not applicable to first-harmonic records"},
+            "broadband": [],
+            "flagged": [],
+            "backbones": bb,
+            "adequacy": [{"preload": p.preload, **(p.adequacy or {"adequate": None})} for p in self.preloads],
+            "selection": [{"preload": p.preload, **(p.selection or {"selected": list(self.laws or ())})}
+                          for p in self.preloads],
+            "first_harmonic": [p.summary() for p in self.preloads],
+        }
+
+    def report(self) -> str:
+        lines = [f"Campaign {self.name!r}: {len(self.records)} records (first harmonics), {len(self.failed)} failed"]
+        for r in self.failed:
+            lines.append(f"  failed: {r.error}")
+        for p in self.preloads:
+            lines.append("")
+            lines.append(f"Preload {p.preload}:")
+            if p.selection:
+                lines.append(f"  laws chosen by leave-one-level-out: wn {p.selection['selected'][0]}, zeta "
+                             f"{p.selection['selected'][1]} ({p.selection['criterion']})")
+            if p.fit is not None:
+                lines.append("  " + p.fit.report().replace("\n", "\n  "))
+            if p.lolo:
+                lines.append("  leave one level out (fit on the others, predict this level from its forces):")
+                lines.append(f"    {'level':<12} {'peak a err %':>13} {'peak f err %':>13} {'amp rms %':>10} "
+                             f"{'phase rms deg':>14}")
+                for e in p.lolo:
+                    if "error" in e:
+                        lines.append(f"    {e['label']:<12} failed: {e['error']}")
+                        continue
+                    pk = e["peaks"]
+                    lines.append(f"    {e['label']:<12} {100 * pk['amplitude_error_rel']:13.2f} "
+                                 f"{100 * pk['frequency_error_rel']:13.4f} {100 * e['amplitude_rms_rel']:10.2f} "
+                                 f"{e['phase_rms_deg']:14.2f}")
+            if p.adequacy is not None:
+                verdict = "adequate" if p.adequacy["adequate"] else "NOT adequate"
+                worst = max(max(r["lag1_z_real"], r["lag1_z_imag"]) for r in p.adequacy["levels"])
+                lines.append(f"  residuals: {verdict} (largest lag-1 autocorrelation z {worst:.2f}, limit "
+                             f"{p.adequacy['levels'][0]['lag1_z_limit']:.2f})")
+            for i, b, d, m in p.ringdowns:
+                lines.append(f"  ring-down record {i}: {len(b)} windows above the noise floor, amplitude "
+                             f"{b.amplitude.min():.3g} .. {b.amplitude.max():.3g} m/s^2, frequency "
+                             f"{b.frequency_hz.min():.4f} .. {b.frequency_hz.max():.4f} Hz, "
+                             f"{'monotone' if m.get('monotone') else 'not monotone'} in amplitude")
+            for k, e in p.errors.items():
+                lines.append(f"  {k}: {e}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(self.report())}</pre>"
+
+    def figures(self) -> list:
+        """``(file name, caption, figure)`` of each preload: FRFs measured vs re-predicted, backbones."""
+        from ..report.firstharmonic_plots import plot_first_harmonic_backbones, plot_level_predictions
+        from ..report.output import slug
+
+        out = []
+        for p in self.preloads:
+            if p.fit is None:
+                continue
+            fig, _ = plot_level_predictions(p.fit.predictions, title=f"preload {p.preload}: measured vs re-predicted")
+            out.append((f"frf_{slug(p.preload)}.png", f"Preload {p.preload}: every level's first harmonics, "
+                        "measured (points) and re-predicted from each line's measured force (lines)", fig))
+            bbs = p.backbones()
+            fig, _ = plot_first_harmonic_backbones([bbs.model, bbs.stepped] + list(bbs.ringdown),
+                                                   title=f"preload {p.preload}: backbones")
+            out.append((f"backbone_{slug(p.preload)}.png", f"Preload {p.preload}: backbones against the "
+                        "first-harmonic acceleration amplitude at the driving point (95 % band and bars)", fig))
+        return out
+
+    def write_set(self, out, run_id, figures=True, html=True) -> dict:
+        """The files of the identify set (called by :func:`jointid.report.output.write_results`)."""
+        from ..io.results import atomic_write, write_csv, write_json
+        from ..report.html import Section, figure_to_png, page_meta, write_html
+
+        summary = self.summary()
+        summary["run_id"] = run_id
+        paths = {"results": write_json(out / "results.json", summary),
+                 "report": atomic_write(out / "report.txt", self.report() + f"\n\nrun id {run_id}\n")}
+        rows = []
+        for p in self.preloads:
+            if p.fit is None:
+                continue
+            for n, v, s in zip(p.fit.names, p.fit.params, p.fit.stderr):
+                rows.append({"preload": p.preload, "parameter": n, "value": float(v), "stderr": float(s),
+                             "ci95_low": float(v - 1.96 * s), "ci95_high": float(v + 1.96 * s)})
+        paths["parameters"] = write_csv(out / "parameters.csv", rows)
+        paths["records"] = write_csv(out / "records.csv", [
+            {k: v for k, v in r.summary().items() if k not in ("flags", "warnings")} for r in self.records])
+        figs = [(n, c, figure_to_png(f, dpi=110)) for n, c, f in self.figures()] if figures else []
+        if figures:
+            paths["figures"] = [atomic_write(out / "figures" / n, png) for n, _, png in figs]
+        if html:
+            paras, tables = [], [("Parameters with standard errors and 95 % intervals", rows, None)]
+            for p in self.preloads:
+                if p.fit is None:
+                    paras.append(f"Preload {p.preload}: " + "; ".join(p.errors.values()))
+                    continue
+                mm, mse = p.fit.modal_mass
+                paras.append(f"Preload {p.preload}: laws wn {p.fit.model.frequency_law.kind}, zeta "
+                             f"{p.fit.model.damping_law.kind}; modal mass at the driving point {mm:.4g} +- "
+                             f"{1.96 * mse:.2g} kg (95 %); amplitude a = {AMPLITUDE_UNIT}; residuals "
+                             + ("adequate" if (p.adequacy or {}).get("adequate") else "not adequate (not white)"))
+                tables.append((f"Preload {p.preload}: every level re-predicted from its measured forces", [
+                    {"level": pr.label, "amplitude rms [%]": round(100 * pr.amplitude_rms_rel, 2),
+                     "phase rms [deg]": round(pr.phase_rms_deg, 2),
+                     "peak a error [%]": round(100 * pr.peaks()["amplitude_error_rel"], 2),
+                     "peak f error [%]": round(100 * pr.peaks()["frequency_error_rel"], 4)}
+                    for pr in p.fit.predictions], None))
+                if p.lolo:
+                    tables.append((f"Preload {p.preload}: each level predicted from the other levels", [
+                        {"level": e["label"], "peak a error [%]": round(100 * e["peaks"]["amplitude_error_rel"], 2),
+                         "peak f error [%]": round(100 * e["peaks"]["frequency_error_rel"], 4),
+                         "amplitude rms [%]": round(100 * e["amplitude_rms_rel"], 2),
+                         "phase rms [deg]": round(e["phase_rms_deg"], 2)} if "peaks" in e else
+                        {"level": e["label"], "error": e["error"]} for e in p.lolo], None))
+            sec = Section("First-harmonic identification", paragraphs=paras, tables=tables,
+                          figures=[(c, png) for _, c, png in figs])
+            paths["html"] = out / "report.html"
+            write_html(paths["html"], f"jointid: {self.name}", [sec],
+                       intro=f"{len(self.records)} records, {len(self.failed)} failed.", meta=page_meta(run_id))
+        return paths
+
+
+def _label(spec):
+    if spec.force_level is not None:
+        return str(spec.force_level)
+    return spec.file
+
+
+def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, candidates=DEFAULT_CANDIDATES,
+                                     lolo=True, ringdown_options=None) -> FirstHarmonicCampaignResult:
+    """Identify a first-harmonic campaign (module docstring).
+
+    Parameters
+    ----------
+    campaign : path or Campaign
+    settings : IdentifySettings, optional
+        Kept on the result (``keep_flagged``); the first-harmonic model has no other setting there.
+    laws : (str, str), optional
+        Frequency and damping laws (``"poly4"``, ``"power"`` ...); chosen by leave-one-level-out
+        prediction among ``candidates`` when not given.
+    lolo : bool
+        Predict each level from the others (for the report).
+    ringdown_options : dict, optional
+        Passed to :func:`jointid.signal.ringdown.modal_ringdown`.
+    """
+    from ..io.campaign import read_record
+    from ..io.firsth import read_first_harmonic_record
+
+    if not isinstance(campaign, Campaign):
+        campaign = load_campaign(campaign)
+    if settings is None:
+        from .records import IdentifySettings
+
+        settings = IdentifySettings()
+    outcomes, levels_of, ring_of = [], {}, {}
+    for spec in campaign.records:
+        if spec.excitation == "ringdown":
+            outcomes.append(RecordOutcome(spec, True, kind="ringdown"))
+            ring_of.setdefault(spec.preload, []).append((len(outcomes) - 1, spec))
+            continue
+        try:
+            rec = read_first_harmonic_record(spec)
+        except JointidError as exc:
+            outcomes.append(RecordOutcome(spec, False, str(exc)))
+            continue
+        outcomes.append(RecordOutcome(spec, True, n_lines=len(rec)))
+        levels_of.setdefault(spec.preload, []).append(FirstHarmonicLevel.from_record(rec, _label(spec)))
+    preloads = []
+    for preload in list(dict.fromkeys([r.spec.preload for r in outcomes])):
+        levels = levels_of.get(preload, [])
+        errors = {}
+        fit = sel = adq = None
+        lo = ()
+        if not levels:
+            if preload in ring_of:
+                errors["fit"] = "no first-harmonic record could be read for this preload"
+            preloads.append(FirstHarmonicPreload(preload, errors=errors))
+            continue
+        chosen = tuple(laws) if laws else None
+        try:
+            if chosen is None:
+                if len(levels) >= 2:
+                    sel = select_laws(levels, candidates)
+                    chosen = sel["selected"]
+                else:
+                    chosen = ("poly2", "poly1")
+                    errors["selection"] = "one level: laws poly2/poly1 taken (selection needs two levels)"
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                fit = fit_first_harmonic(levels, *chosen)
+                if lolo and len(levels) >= 2:
+                    lo = tuple(leave_one_level_out(levels, *chosen, a_ref=fit.model.a_ref))
+            adq = adequacy(fit)
+        except (IdentificationError, ValueError, np.linalg.LinAlgError) as exc:
+            errors["fit"] = str(exc)
+        rings = []
+        for i, spec in ring_of.get(preload, []):
+            if fit is None:
+                break
+            try:
+                data = read_record(spec, required=("time", "accel"))
+                f0 = float(fit.backbone(amplitudes=[fit.amplitude_range[0]]).frequency_hz[0])
+                b, d, mono = ringdown_backbone(data.time, data.channels["accel"], f0, label=f"ring-down {spec.index}",
+                                               **(ringdown_options or {}))
+                rings.append((spec.index, b, d.summary(), mono))
+            except JointidError as exc:
+                outcomes[i] = RecordOutcome(spec, False, f"{where(spec.file, spec.index)}{exc}", kind="ringdown")
+        preloads.append(FirstHarmonicPreload(preload, fit, sel, lo, adq, tuple(rings), errors))
+    notes = [f"preload {p.preload}: {k}: {e}" for p in preloads for k, e in p.errors.items()]
+    notes += [f"record failed: {o.error}" for o in outcomes if not o.ok]
+    if notes:  # one summary warning; every message stays on its record and in results.json
+        warnings.warn(f"{len(notes)} problem(s) in the first-harmonic campaign:\n  " + "\n  ".join(notes),
+                      JointidWarning, stacklevel=2)
+    return FirstHarmonicCampaignResult(campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(preloads),
+                                       tuple(laws) if laws else None)
