@@ -16,7 +16,10 @@ Three checks, each with the calibrated covariances of :mod:`jointid.identify.unc
   the noise (median misfit at most 3) is an outlier, and a trend of the records' own
   ``omega1`` with the acquisition order (beside ``q_max``) is a drift;
 * **explained fractions**: of the restoring force ``Q - q''`` (energy), and of its
-  harmonics above the first (where the nonlinear terms show).
+  harmonics above the first (where the nonlinear terms show): ``explained_harmonics`` is
+  ``1 - residual / measured`` energy there, a coefficient of determination that is negative
+  when the model's harmonics are further from the measured ones than none at all (a cubic
+  spring's third harmonic against a friction joint's); reports show ``residual / measured``.
 
 A term with energy beyond the fitted harmonics (``sign(q')``) is compared with the records
 within the fitted harmonics (:func:`~jointid.identify.model.in_band_rows`): the filtered
@@ -246,9 +249,9 @@ class AdequacyResult:
             m = np.array([r.misfit for r in self.records], float)
             mis = float(np.median(m[np.isfinite(m)])) if np.any(np.isfinite(m)) else float("nan")
             lines.append(f"  records: misfit median {mis:.3g} (1 = explained to the noise); restoring force explained "
-                         f"{100 * ef:.6g} % (lowest record {100 * efmin:.6g} %); harmonics above the first explained "
-                         f"{100 * eh:.3g} % over all records (residual {self.harmonic_residual_to_noise:.3g} times the "
-                         f"noise's)")
+                         f"{100 * ef:.6g} % (lowest record {100 * efmin:.6g} %); harmonics above the first: residual / "
+                         f"measured energy {1 - eh:.3g} over all records (0 = explained, 1 = as if left out; residual "
+                         f"{self.harmonic_residual_to_noise:.3g} times the noise's)")
         if self.outliers:
             lines.append(f"  outlier records: {', '.join(str(o) for o in self.outliers)}")
         lines += [f"  {m}" for m in self.messages]
