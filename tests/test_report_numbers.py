@@ -153,3 +153,15 @@ def test_intervals_and_exact_fits():
     for v in (np.pi * 1e-300, np.pi, np.pi * 1e300):
         mant = format_value(v, 30).split("e")[0].replace("-", "").replace(".", "").lstrip("0")
         assert len(mant) <= 15
+
+
+def test_a_two_record_power_law_has_no_standard_error():
+    from jointid.report.output import _power_rows
+
+    s = {"power_law": [{"preload": 1, "force_level": 2.0, "alpha": 1e-8, "n": 1.11, "n_stderr": 5e-13,
+                        "force": [1.0, 2.0], "within_2_3": False},
+                       {"preload": 1, "force_level": 3.0, "alpha": 1e-8, "n": 2.4515, "n_stderr": 0.0017,
+                        "force": [1.0, 2.0, 3.0, 4.0], "within_2_3": True}]}
+    two, four = _power_rows(s)
+    assert two["n ± standard error [1]"] == "1.11 (standard error not available: no degrees of freedom)"
+    assert four["n ± standard error [1]"] == "2.4515 ± 0.0017" and two["F [N]"] == "2"
