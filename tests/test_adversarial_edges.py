@@ -329,3 +329,60 @@ def test_campaign_mixing_record_types_with_broken_broadband_records(camp, tmp_pa
     assert len(res["groups"]) == 2 and all(g["k3"] > 0 for g in res["groups"])  # the stepped sines identified
     (b,) = res["broadband"]
     assert len(b["failed"]) == 2 and b["error"] == "no usable record"
+
+
+# ------------------------------------------------------------------------------ ring-down records
+def _free_decay(c, q0, n=8000, fs=2000.0):
+    from scipy.integrate import solve_ivp
+
+    t = np.arange(n) / fs
+
+    def rhs(_, y):
+        return [y[1], -c * y[1] - 170.0**2 * y[0] + 5e6 * y[0] ** 3]
+
+    sol = solve_ivp(rhs, (0, t[-1]), [q0, 0.0], t_eval=t, rtol=1e-11, atol=1e-14, method="DOP853")
+    return t, -c * sol.y[1] - 170.0**2 * sol.y[0] + 5e6 * sol.y[0] ** 3
+
+
+@pytest.fixture(scope="module")
+def ringdowns(camp, tmp_path_factory):
+    """The stepped-sine campaign with one good ring-down and six that are not free decays."""
+    import shutil
+
+    from jointid.io.campaign import write_csv_record
+
+    folder = tmp_path_factory.mktemp("rd") / "c"
+    shutil.copytree(camp, folder)
+    rng = np.random.default_rng(9)
+    t, good = _free_decay(0.08, 0.01)
+    _, growing = _free_decay(-0.08, 0.002)
+    cases = {"good": good, "growing": growing, "steady": 100.0 * np.sin(170.0 * t),
+             "noise": rng.standard_normal(t.size), "constant": np.full(t.size, 9.81), "short": good[:600],
+             "nan": np.where(np.arange(t.size) == 50, np.nan, good)}
+    with open(folder / "campaign.toml", "a", encoding="utf-8") as fh:
+        for name, x in cases.items():
+            noisy = x + 1e-3 * np.nanstd(x) * rng.standard_normal(x.size) if name != "constant" else x
+            write_csv_record(folder / f"rd_{name}.csv", t[:x.size], {"accel": noisy})
+            fh.write(f'\n[[record]]\nfile = "rd_{name}.csv"\npreload = "p"\nforce_level = 0.5\n'
+                     'excitation = "ringdown"\n')
+    return folder
+
+
+def test_ringdowns_that_are_not_free_decays_give_no_backbone(ringdowns):
+    res = _identify(ringdowns)
+    p = res.backbones["p"]
+    assert [b.label for b in p.ringdown] == ["rd_good.csv"]
+    errs = {m.split(" [")[0].split(":")[0]: m for k, m in p.errors.items() if k.startswith("record ")}
+    assert set(errs) == {f"rd_{n}.csv" for n in ("growing", "steady", "noise", "constant", "short", "nan")}, errs
+    assert "ringdown_growing" in errs["rd_growing.csv"] and "damping ratio -" in errs["rd_growing.csv"]
+    assert "ringdown_no_decay" in errs["rd_steady.csv"]
+    assert "ringdown_noise" in errs["rd_noise.csv"]
+
+
+def test_cli_lists_unusable_ringdowns_and_exits_1(ringdowns, tmp_path, capsys):
+    code, _, err = _run(["identify", ringdowns, "--out", tmp_path / "r", "--no-figures", "--no-reprediction",
+                         "--quiet"], capsys)
+    assert code == 1
+    for name in ("growing", "steady", "noise", "constant", "short", "nan"):
+        assert f"rd_{name}.csv" in err, err
+    assert "rd_good.csv" not in err

@@ -351,9 +351,9 @@ def _identify(args) -> int:
     misfit = misfit_lines(summary)
     for line in misfit:  # also when quiet: a model that does not fit needs a look
         print(line, file=sys.stderr)
-    from .app.broadband_records import broadband_problem_lines
+    from .app.record_problems import problem_lines
 
-    broadband = broadband_problem_lines(getattr(result, "broadband", ()))
+    broadband = problem_lines(result)  # broadband and ring-down records flagged or not usable
     for line in broadband:
         print(line, file=sys.stderr)
     return EXIT_PARTIAL if result.failed or result.flagged or broadband or misfit else EXIT_OK

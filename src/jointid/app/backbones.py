@@ -119,9 +119,15 @@ def ringdown_decay(spec, structure=None, **fit_options):
         qdd = structure.project({k: data.channels[k] for k in structure.sensors}).qdd[0]
         channel = "accel (modal)"
     try:
-        return fit_decay(data.time, qdd, channel=channel, **fit_options)
+        decay = fit_decay(data.time, qdd, channel=channel, **fit_options)
     except RecordError as exc:
         raise RecordError(f"{loc}{exc}") from None
+    from ..signal.ringdown_checks import ringdown_flags
+
+    flags = ringdown_flags(decay, channel)  # noise, growth, no decay, too few windows: no backbone from it
+    if flags:
+        raise RecordError(loc + "not a usable free decay: " + "; ".join(f.report() for f in flags))
+    return decay
 
 
 @dataclass(frozen=True, eq=False)

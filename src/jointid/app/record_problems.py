@@ -1,0 +1,29 @@
+"""Records outside the stepped-sine chain that could not be used: one line each for the console.
+
+Broadband records (:mod:`jointid.app.broadband_records`) and ring-down records (identified
+with the backbones, :mod:`jointid.app.backbones`) are not in ``result.records``; a flagged or
+failed one must still make the run a partial one (exit 1) and be listed, like a flagged
+stepped-sine record.
+"""
+
+from __future__ import annotations
+
+from .broadband_records import broadband_problem_lines
+
+__all__ = ["problem_lines"]
+
+
+def ringdown_problem_lines(backbones) -> list:
+    """One line per ring-down record the backbones could not use (its error, with the numbers)."""
+    lines = []
+    for p in getattr(backbones, "preloads", ()) or ():
+        for key, message in (getattr(p, "errors", None) or {}).items():
+            if str(key).startswith("record "):
+                lines.append(f"ring-down preload {p.preload}, {key}: {message}")
+    return lines
+
+
+def problem_lines(result) -> list:
+    """Broadband and ring-down problems of a :class:`~jointid.app.workflow.CampaignResult` (empty when none)."""
+    return broadband_problem_lines(getattr(result, "broadband", ())) + ringdown_problem_lines(
+        getattr(result, "backbones", None))
