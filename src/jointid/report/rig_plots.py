@@ -147,7 +147,7 @@ def plot_record(t, force, accel, accel_fit, velocity, displacement, axes=None, t
     axes[1].plot(t[sel], accel[sel], lw=0.7, color="0.6", label="measured")
     axes[1].plot(t[sel], accel_fit[sel], lw=1.0, label="fitted harmonic series")
     axes[1].set_ylabel("q'' [m/s²]")
-    axes[1].legend(fontsize=7)
+    axes[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
     axes[2].plot(t[sel], velocity[sel], lw=1.0)
     axes[2].set_ylabel("q' [m/s]")
     axes[3].plot(t[sel], displacement[sel], lw=1.0)
