@@ -334,6 +334,19 @@ def test_modal_frf_phase_wrapped_with_breaks_and_modal_fit_error():
     assert np.isnan(ph[2]) and ph.size == 5  # a break, not a vertical stroke, at the wrap
 
 
+def test_modal_shapes_and_updating_figures():
+    from jointid.modal import SEED_TABLE4_HZ, modal_analysis, seed_bolted_beam, update_to_frequencies
+    from jointid.report.modal_plots import plot_mode_shapes, plot_update_residuals
+
+    fig, _ = plot_mode_shapes(modal_analysis(seed_bolted_beam(120), 3), sensors={"a": 0.3, "b": 0.42},
+                              force_position=0.05)
+    r = update_to_frequencies(seed_bolted_beam(), SEED_TABLE4_HZ[120], ("k_w", "k_t"), n_starts=2)
+    fig2, _ = plot_update_residuals(r)
+    problems = check_units("mode shapes", fig) + check_layout("mode shapes", fig)
+    problems += check_units("updating", fig2) + check_layout("updating", fig2) + check_error_measure("updating", fig2)
+    assert not problems, "\n".join(problems)
+
+
 def test_study_figures_label_their_axes():
     from jointid.report.study_plots import distribution_text, plot_calibration, plot_z_histograms
 

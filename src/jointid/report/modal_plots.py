@@ -98,7 +98,7 @@ def plot_mode_shapes(modal, modes=None, ax=None, *, n_points: int = 400, sensors
     ax.set_xlabel("x [m]")
     ax.set_ylabel(r"mass-normalised $\varphi(x)$ [kg$^{-1/2}$]")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small", frameon=False)
     return fig, ax
 
 
