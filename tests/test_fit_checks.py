@@ -38,6 +38,16 @@ def test_damping_law_check(chi2, dof, fits):
         assert "does not fit" in lines[1] and "understate" in lines[1]
 
 
+def test_immaterial_misfit_of_noise_free_data_fits():
+    """Values on the law to 1e-13 with standard errors at rounding level: a huge chi2, no misfit."""
+    q = np.linspace(1e-3, 1e-2, 6)
+    c = 0.3 + 100 * q
+    law = DampingLaw(np.array([0.3, 100.0]), np.array([1e-15, 1e-13]), q, c * (1 + 1e-13 * (-1) ** np.arange(6)),
+                     np.full(6, 1e-16), None, 800.0, 4)
+    (c_,) = fit_checks(SimpleNamespace(damping_laws={1: law}, channel_delay=None))
+    assert c_["fits"] is True and c_["relative_rms_residual"] < 1e-12 and "noise-free" in c_["message"]
+
+
 def test_channel_delay_check_and_what_has_none():
     d = ChannelDelay(-7.7e-4, 5e-6, reduced_chi2=649.0, dof=1, n_dwells=4)
     res = SimpleNamespace(damping_laws={1: None, 2: _law(float("nan"), 0)}, channel_delay=d)
