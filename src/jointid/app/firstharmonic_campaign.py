@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IdentificationError, JointidError, JointidWarning, where
+from ..identify.backbone import Backbone
 from ..identify.firstharmonic import (
     AMPLITUDE_UNIT,
     DEFAULT_CANDIDATES,
@@ -40,7 +41,7 @@ from ..io.campaign import Campaign, load_campaign
 from ..signal.ringdown import modal_ringdown, monotone_check
 
 __all__ = ["is_first_harmonic_campaign", "identify_first_harmonic_campaign", "FirstHarmonicCampaignResult",
-           "FirstHarmonicPreload", "RecordOutcome", "ringdown_backbone"]
+           "FirstHarmonicPreload", "RecordOutcome", "ringdown_backbone", "compare_with_model"]
 
 
 def is_first_harmonic_campaign(campaign: Campaign) -> bool:
@@ -93,6 +94,32 @@ def ringdown_backbone(t, accel, frequency_hz, label="", **options):
     floor = d.signal_amplitude[d.below_noise_floor]
     mono["noise_floor_amplitude"] = float(floor.max()) if floor.size else None
     return b, d, mono
+
+
+def compare_with_model(fit, ring: Backbone) -> dict:
+    """Ring-down backbone against the stepped-sine model where their amplitudes overlap.
+
+    ``delta_f_hz``: ring-down minus model natural frequency (mean, smallest, largest over the
+    overlapping windows) with the combined standard error at the window of largest
+    difference; ``zeta_ratio``: ring-down over model damping ratio.
+    """
+    lo, hi = fit.amplitude_range
+    m = (ring.amplitude >= lo) & (ring.amplitude <= hi)
+    if not m.any():
+        return {"overlap": None, "n_windows": 0,
+                "note": f"no overlap: ring-down {ring.amplitude.min():.3g}..{ring.amplitude.max():.3g}, "
+                        f"stepped sine {lo:.3g}..{hi:.3g}"}
+    a = ring.amplitude[m]
+    mb = fit.backbone(amplitudes=a)
+    df = (ring.omega[m] - mb.omega) / (2 * np.pi)
+    se = np.hypot(ring.omega_stderr[m], mb.omega_stderr) / (2 * np.pi)
+    zr = ring.zeta[m] / mb.zeta
+    k = int(np.argmax(np.abs(df)))
+    return {"overlap": [float(a.min()), float(a.max())], "n_windows": int(m.sum()),
+            "delta_f_hz": {"mean": float(df.mean()), "min": float(df.min()), "max": float(df.max()),
+                           "stderr_at_max": float(se[k]), "at_amplitude": float(a[k])},
+            "delta_f_rel_max": float(np.max(np.abs(df)) / (mb.omega[k] / (2 * np.pi))),
+            "zeta_ratio": {"mean": float(zr.mean()), "min": float(zr.min()), "max": float(zr.max())}}
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,6 +175,7 @@ class FirstHarmonicCampaignResult:
     laws: tuple | None = None
     groups: tuple = ()  # no force-state groups: the keys of a stepped-sine identification stay empty
     models: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # more top-level keys of results.json (worked examples)
 
     @property
     def failed(self):
@@ -207,6 +235,7 @@ class FirstHarmonicCampaignResult:
             "selection": [{"preload": p.preload, **(p.selection or {"selected": list(self.laws or ())})}
                           for p in self.preloads],
             "first_harmonic": [p.summary() for p in self.preloads],
+            **self.extra,
         }
 
     def report(self) -> str:
@@ -243,6 +272,12 @@ class FirstHarmonicCampaignResult:
                              f"{b.amplitude.min():.3g} .. {b.amplitude.max():.3g} m/s^2, frequency "
                              f"{b.frequency_hz.min():.4f} .. {b.frequency_hz.max():.4f} Hz, "
                              f"{'monotone' if m.get('monotone') else 'not monotone'} in amplitude")
+                c = m.get("vs_stepped_sine") or {}
+                if c.get("overlap"):
+                    lines.append(f"    against the stepped-sine model over {c['overlap'][0]:.3g} .. {c['overlap'][1]:.3g} "
+                                 f"m/s^2: frequency {c['delta_f_hz']['min']:+.4f} .. {c['delta_f_hz']['max']:+.4f} Hz "
+                                 f"(largest {100 * c['delta_f_rel_max']:.3f} %), damping ratio x "
+                                 f"{c['zeta_ratio']['min']:.2f} .. {c['zeta_ratio']['max']:.2f}")
             for k, e in p.errors.items():
                 lines.append(f"  {k}: {e}")
         return "\n".join(lines)
@@ -405,6 +440,7 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
                 f0 = float(fit.backbone(amplitudes=[fit.amplitude_range[0]]).frequency_hz[0])
                 b, d, mono = ringdown_backbone(data.time, data.channels["accel"], f0, label=f"ring-down {spec.index}",
                                                **(ringdown_options or {}))
+                mono["vs_stepped_sine"] = compare_with_model(fit, b)
                 rings.append((spec.index, b, d.summary(), mono))
             except JointidError as exc:
                 outcomes[i] = RecordOutcome(spec, False, f"{where(spec.file, spec.index)}{exc}", kind="ringdown")
