@@ -200,7 +200,7 @@ def check_error_measure(name, fig, png=None):
             if not any(isinstance(c, PolyCollection) for ax in fig.axes for c in ax.collections):
                 problems.append(f"{name}: says '{m}' but draws no band")
         elif m == "rms error":
-            if not any("rms" in t for t in texts):
+            if not any("rms" in t.lower() for t in texts):
                 problems.append(f"{name}: says '{m}' but prints no rms error")
         elif m == "error axis":
             if not any("%" in t or "error" in t for t in texts):
@@ -395,3 +395,21 @@ def test_demo_figures_units_layout_and_error_measures(tmp_path):
             compared += 1
             problems += check_error_measure(name, fig, tmp_path / "demo" / "figures" / f"{name}.png")
     assert compared >= 8 and not problems, "\n".join(problems)
+
+
+@pytest.mark.slow
+def test_public_data_figures(shared_data, tmp_path):
+    """Silverbox levels, the Silverbox arrow and the F-16 restoring force (slow: reads the data sets)."""
+    from jointid.app.public_data import f16_restoring_force, silverbox_benchmark, silverbox_multilevel
+    from jointid.io.results import atomic_savefig
+
+    problems = []
+    for name, func, compares in (("silverbox", silverbox_multilevel, True), ("benchmark", silverbox_benchmark, True),
+                                 ("f16", f16_restoring_force, False)):
+        drawn = func().plot()
+        fig = drawn if hasattr(drawn, "savefig") else np.ravel(drawn)[0].figure
+        path = atomic_savefig(fig, tmp_path / f"{name}.png", dpi=60)
+        problems += check_units(name, fig) + check_layout(name, fig)
+        if compares:
+            problems += check_error_measure(name, fig, path)
+    assert not problems, "\n".join(problems)
