@@ -102,7 +102,7 @@ def check_header(header, gain_free, where):
         assert unit == ("V" if gain_free else "N"), f"{where}: force level column {header!r}"
     if re.search(r"\bomega", name) and "omega1^2" not in name and "²" not in unit:
         assert unit == "rad/s", f"{where}: {header!r} is an angular frequency: rad/s"
-    if re.search(r"(^|\b)(f1|f|peak f|frequency|folds)\b", name) and not header.startswith("F "):
+    if re.search(r"(^|\s)(f1|f|peak f|frequency|folds)(\s|$)", name) and not header.startswith("F "):
         assert unit == "Hz", f"{where}: {header!r} is a frequency: Hz"
     if re.search(r"\bk3\b", name) and "joint" not in name:
         if gain_free:
