@@ -323,7 +323,7 @@ def demo_sections(demo, figs) -> list:
         p = law.iwan
         rows.append({
             "preload [N]": pr.preload,
-            "f1..f4 stuck [Hz]": ", ".join(f"{f:.2f}" for f in pr.rig.linear_frequencies_hz),
+            "f1..f4 stuck [Hz]": ", ".join(format_value(f, 5) for f in pr.rig.linear_frequencies_hz),
             "modal damping ratio [%]": 100 * float(pr.rig.model.zeta[0]),
             "F_S [N m]": p.F_S, "K_T [N m/rad]": p.K_T, "chi [1]": p.chi, "beta [1]": p.beta,
             "phi_max [rad]": p.phi_max, "k3 joint [N m/rad³]": law.k3,
@@ -348,9 +348,9 @@ def demo_sections(demo, figs) -> list:
         shape_id = np.concatenate([pr.structure.phi_force[:1], pr.structure.phi_sensors[:, 0]])
         rows.append({
             "preload [N]": pr.preload,
-            "k_w updated / rig [1]": up.get("k_w", np.nan) / rb.joint.k_w,
-            "k_t updated / rig [1]": up.get("k_t", np.nan) / rb.joint.k_t,
-            "k_c updated / rig [1]": up.get("k_c", np.nan) / rb.clamp_stiffness,
+            "k_w updated / rig [1]": format_value(up.get("k_w", np.nan) / rb.joint.k_w, 5),
+            "k_t updated / rig [1]": format_value(up.get("k_t", np.nan) / rb.joint.k_t, 5),
+            "k_c updated / rig [1]": format_value(up.get("k_c", np.nan) / rb.clamp_stiffness, 5),
             "phi_1 (force, 30, 42 cm) max relative error [1]": float(np.max(np.abs(shape_id / shape_true - 1))),
             "random test: joint secant loss at RMS / max motion [1]": " / ".join(
                 format_value(v, 3) for k in ("rms", "max")
@@ -390,7 +390,8 @@ def demo_sections(demo, figs) -> list:
         "omega1 and k3 shared, one damping coefficient per record. The rig's linear f1 is the stuck-joint first "
         "frequency; its joint is not a cubic spring plus a viscous damper, so k3 and c are the model's equivalent "
         "values. The rig's modal cubic coefficient alone is "
-        + ", ".join(f"{pr.rig.modal_cubic_coefficient:.3g} ({_pl(pr.preload)} N)" for pr in demo.preloads)
+        + ", ".join(f"{format_value(pr.rig.modal_cubic_coefficient, 3)} N/m³ ({_pl(pr.preload)} N)"
+                    for pr in demo.preloads)
         + "; the Iwan joint's softening adds to it."])
     rows = []
     for pr in demo.preloads:
