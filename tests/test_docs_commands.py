@@ -103,7 +103,7 @@ def _load(path):
 
 def _needs_shared_data(argv):
     text = " ".join(argv)
-    return argv[0] == "public-data" or "unesp" in text
+    return argv[0] == "public-data" or "unesp" in text or "brb" in text
 
 
 @pytest.mark.slow

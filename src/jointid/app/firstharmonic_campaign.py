@@ -93,6 +93,12 @@ def ringdown_backbone(t, accel, frequency_hz, label="", **options):
     mono = monotone_check(b.amplitude, b.omega, b.omega_stderr) if len(b) >= 3 else {"monotone": None}
     floor = d.signal_amplitude[d.below_noise_floor]
     mono["noise_floor_amplitude"] = float(floor.max()) if floor.size else None
+    if len(b):  # noise-floor bias of the amplitude at the lowest window kept: (se / a)^2 (fit_decay)
+        k = int(np.argmin(b.amplitude))
+        snr = float(b.amplitude[k] / b.amplitude_stderr[k]) if b.amplitude_stderr[k] > 0 else np.inf
+        mono["lowest_window_snr"] = snr
+        mono["amplitude_bias_rel_at_lowest"] = float(1 / snr**2)
+        mono["floor_amplitude_estimate"] = float(d.snr_min * np.median(d.signal_amplitude_stderr))
     return b, d, mono
 
 

@@ -39,7 +39,7 @@ BRB_GOALS = {"amplitude_rms_rel": 0.05, "phase_rms_deg": 4.0, "lolo_top_peak_amp
              "lolo_top_peak_frequency_rel": 5e-4, "std_z": (0.8, 1.25)}
 
 
-def monte_carlo_std_z(fit, n_campaigns=60, seed=2023) -> dict:
+def monte_carlo_std_z(fit, n_campaigns=100, seed=2023) -> dict:
     """std(z) of every parameter over synthetic campaigns with the fit's lines, forces and noise."""
     rng = np.random.default_rng(seed)
     zs = []
@@ -107,7 +107,7 @@ class BrbResult:
         return write_results(self.campaign, folder)
 
 
-def brb_example(*, n_monte_carlo=60, seed=2023, laws=None) -> BrbResult:
+def brb_example(*, n_monte_carlo=100, seed=2023, laws=None) -> BrbResult:
     """Import, identify and check the BRB data (module docstring).
 
     Raises
