@@ -329,9 +329,11 @@ def _identify(args) -> int:
           "pooled fits, laws, adequacy, " + ("" if args.no_reprediction else "re-prediction by harmonic balance, ")
           + "backbones")
     level = "none" if args.no_figures else args.figures
-    write_results(result, args.out, figures={"none": False, "summary": "summary", "all": True}[level])
-    drawn = {"none": "no figures", "summary": "the figures of each preload (--figures all: also each group's)",
-             "all": "all figures"}[level]
+    paths = write_results(result, args.out, figures={"none": False, "summary": "summary", "all": True}[level])
+    n_figures = len(paths.get("figures") or [])
+    drawn = {"none": "no figures (--figures summary|all draws them)",
+             "summary": f"{n_figures} figures of the preloads (--figures all adds each group's)",
+             "all": f"{n_figures} figures"}[level]
     stage(f"written: results.json, CSV tables, report.txt, report.html, {drawn}")
     from .report.output import flagged_lines
     from .report.summary import console_lines, error_lines
