@@ -30,10 +30,10 @@ def distribution_text(spec) -> str:
     if not isinstance(spec, dict):
         return str(spec)
     names = {"uniform": "uniform", "loguniform": "log-uniform", "normal": "normal", "choice": "one of",
-             "randint": "integer"}
+             "integers": "integers"}
     parts = []
     for k, v in spec.items():
-        if k in ("uniform", "loguniform", "randint") and isinstance(v, (list, tuple)) and len(v) == 2:
+        if k in ("uniform", "loguniform", "integers") and isinstance(v, (list, tuple)) and len(v) == 2:
             parts.append(f"{names[k]} {_fmt(v[0])} .. {_fmt(v[1])}")
         elif k == "normal" and isinstance(v, (list, tuple)) and len(v) == 2:
             parts.append(f"normal, mean {_fmt(v[0])}, sd {_fmt(v[1])}")
