@@ -179,12 +179,12 @@ class Backbone:
     def report(self) -> str:
         lines = [f"Backbone ({self.source}{', ' + self.label if self.label else ''}): {len(self)} points, "
                  f"{self.decades():.2f} decades of amplitude",
-                 f"  {'a':>11} {'f [Hz]':>12} {'± (95%)':>10} {'zeta':>10} {'± (95%)':>10}"]
+                 f"  {'a':>11} {'f [Hz]':>12} {'± (95%)':>10} {'zeta [%]':>10} {'± (95%)':>10}"]
         idx = range(len(self)) if len(self) <= 12 else np.unique(np.linspace(0, len(self) - 1, 12).astype(int))
         for i in idx:
             lines.append(f"  {self.amplitude[i]:11.4e} {self.frequency_hz[i]:12.6f} "
-                         f"{Z95 * self.omega_stderr[i] / (2 * np.pi):10.2g} {self.zeta[i]:10.5f} "
-                         f"{Z95 * self.zeta_stderr[i]:10.2g}")
+                         f"{Z95 * self.omega_stderr[i] / (2 * np.pi):10.2g} {100 * self.zeta[i]:10.4f} "
+                         f"{100 * Z95 * self.zeta_stderr[i]:10.2g}")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
