@@ -24,6 +24,7 @@ import numpy as np
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
+from ..rounding import format_ci, format_pm
 from ..signal.harmonics import StateSignals
 from .regression import LstsqResult, lstsq_from_reduced, pooled_solve
 from .terms import TermLibrary, library
@@ -66,15 +67,11 @@ def _ci_text(value, stderr) -> str:
     ci = ci95(value, stderr)
     if ci is None:
         return ""
-    from ..report.formatting import format_ci  # rounded like the value (two digits of the standard error)
-
-    return f", 95 % {format_ci(ci, stderr)}"
+    return f", 95 % {format_ci(ci, stderr)}"  # rounded like the value (two digits of the standard error)
 
 
 def _pm(value, stderr) -> str:
     """``value ± stderr`` rounded to two significant digits of the standard error."""
-    from ..report.formatting import format_pm
-
     return format_pm(value, stderr)
 
 

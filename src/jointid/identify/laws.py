@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IdentificationError
+from ..rounding import format_ci, format_pm, format_value
 from ..signal.harmonics import HarmonicSeries
 from .uncertainty import LowRankCovariance, ci95
 
@@ -84,13 +85,11 @@ class DampingLaw:
         }
 
     def report(self) -> str:
-        from ..report.formatting import format_pm  # two significant digits of each standard error
-
         terms = " + ".join(
             f"({format_pm(c, s)})" + ("" if k == 0 else " q_max" if k == 1 else f" q_max^{k}")
             for k, (c, s) in enumerate(zip(self.coefficients, self.stderr))
         )
-        fit = (f"; chi^2/dof {self.chi2 / self.dof:.3g}, p = {self.p_value:.3g}"
+        fit = (f"; chi^2/dof {format_value(self.chi2 / self.dof, 3)}, p = {format_value(self.p_value, 2)}"
                if self.dof > 0 and np.isfinite(self.chi2) else "")
         return f"c(q_max) = {terms}   [{len(self.q_max)} records{fit}]"
 
@@ -290,11 +289,12 @@ class PowerLaw:
     def report(self) -> str:
         flag = "within" if self.within_bounds else "OUTSIDE"
         ci = self.n_ci95
-        txt = f"U = {self.alpha:.4g} F^{self.n:.4f} (± {self.n_stderr:.2g}"
-        txt += f", 95 % [{ci[0]:.4f}, {ci[1]:.4f}])" if ci else ")"
-        txt += f"; n {flag} [2, 3]; F {np.min(self.force):.4g} .. {np.max(self.force):.4g}"
+        dof = len(self.force) - 2  # two parameters: a two-record group is an exact fit
+        txt = f"U = {format_value(self.alpha)} F^n, n = {format_pm(self.n, self.n_stderr, dof=dof)}"
+        txt += f", 95 % {format_ci(ci, self.n_stderr)}" if ci and dof > 0 else ""
+        txt += f"; n {flag} [2, 3]; F {format_value(np.min(self.force))} .. {format_value(np.max(self.force))}"
         if self.n_local is not None:
-            txt += f"; model's local n {np.min(self.n_local):.3f} .. {np.max(self.n_local):.3f}"
+            txt += f"; model's local n {format_value(np.min(self.n_local))} .. {format_value(np.max(self.n_local))}"
         return txt
 
     def __repr__(self):
