@@ -368,21 +368,56 @@ def ringdowns(camp, tmp_path_factory):
     return folder
 
 
-def test_ringdowns_that_are_not_free_decays_give_no_backbone(ringdowns):
-    res = _identify(ringdowns)
-    p = res.backbones["p"]
-    assert [b.label for b in p.ringdown] == ["rd_good.csv"]
-    errs = {m.split(" [")[0].split(":")[0]: m for k, m in p.errors.items() if k.startswith("record ")}
-    assert set(errs) == {f"rd_{n}.csv" for n in ("growing", "steady", "noise", "constant", "short", "nan")}, errs
+def test_ringdowns_that_are_not_free_decays_give_no_backbone(ringdowns, tmp_path, capsys):
+    code, _, err = _run(["identify", ringdowns, "--out", tmp_path / "r", "--no-figures", "--no-reprediction",
+                         "--quiet"], capsys)
+    assert code == 1  # listed, not a clean run
+    bad = ("growing", "steady", "noise", "constant", "short", "nan")
+    for name in bad:
+        assert f"rd_{name}.csv" in err, err
+    assert "rd_good.csv" not in err
+    (p,) = json.loads((tmp_path / "r" / "results.json").read_text())["backbones"]["preloads"]
+    assert [b["label"] for b in p["ringdown"]] == ["rd_good.csv"]
+    errs = {m.split(" [")[0]: m for k, m in p["errors"].items() if k.startswith("record ")}
+    assert set(errs) == {f"rd_{n}.csv" for n in bad}, errs
     assert "ringdown_growing" in errs["rd_growing.csv"] and "damping ratio -" in errs["rd_growing.csv"]
     assert "ringdown_no_decay" in errs["rd_steady.csv"]
     assert "ringdown_noise" in errs["rd_noise.csv"]
+    assert "ringdown_short" in errs["rd_short.csv"] or "window" in errs["rd_short.csv"]
 
 
-def test_cli_lists_unusable_ringdowns_and_exits_1(ringdowns, tmp_path, capsys):
-    code, _, err = _run(["identify", ringdowns, "--out", tmp_path / "r", "--no-figures", "--no-reprediction",
+# ------------------------------------------------------------------------------ user text in figures
+MATH = r"$\frac{a$"  # invalid mathtext: matplotlib raises when it parses it
+
+
+def test_preload_force_level_and_file_names_holding_mathtext(camp, tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "c"
+    shutil.copytree(camp, folder)
+    (folder / "$x$").mkdir()
+    (folder / "records" / "0000.csv").rename(folder / "$x$" / "r.csv")
+    text = (folder / "campaign.toml").read_text(encoding="utf-8")
+    text = text.replace('"records/0000.csv"', '"$x$/r.csv"').replace('preload = "p"', 'preload = "$\\\\frac{a$"')
+    text = text.replace("force_level = 0.5\n", 'force_level = "$\\\\sqrt{b$"\n')
+    (folder / "campaign.toml").write_text(text, encoding="utf-8")
+    code, _, err = _run(["identify", folder, "--out", tmp_path / "r", "--figures", "summary", "--no-reprediction",
                          "--quiet"], capsys)
-    assert code == 1
-    for name in ("growing", "steady", "noise", "constant", "short", "nan"):
-        assert f"rd_{name}.csv" in err, err
-    assert "rd_good.csv" not in err
+    assert code in (0, 1), err
+    res = json.loads((tmp_path / "r" / "results.json").read_text())
+    assert res["models"][0]["preload"] == MATH  # the label itself is kept as given
+    pngs = sorted(p.name for p in (tmp_path / "r" / "figures").glob("*.png"))
+    assert any(n.startswith("adequacy_") for n in pngs), pngs
+
+
+def test_backbone_figure_with_mathtext_labels():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from jointid.identify.backbone import model_backbone
+    from jointid.report.backbone_plots import plot_backbones
+    from jointid.report.html import figure_to_png
+
+    b = model_backbone("q + -q^3 + q'", [170.0**2, 5e6, 0.08], np.geomspace(1e-4, 1e-2, 5), label=MATH)
+    fig, _ = plot_backbones([b], title=f"preload {MATH}")
+    assert figure_to_png(fig)[:4] == b"\x89PNG"

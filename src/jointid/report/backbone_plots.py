@@ -39,7 +39,7 @@ def plot_backbone(backbone, ax=None, label=None, units="Hz", amplitude_unit="m")
     b = backbone.sorted()
     k = 1 / (2 * np.pi) if units == "Hz" else 1.0
     style = _STYLE.get(b.source, dict(fmt="o", marker="o"))
-    lab = label or (f"{b.source}" + (f" ({b.label})" if b.label else ""))
+    lab = _tex_safe(label or (f"{b.source}" + (f" ({b.label})" if b.label else "")))  # user text: no mathtext
     measures = []
     if style["marker"] is None:
         (line,) = aw.plot(b.amplitude, k * b.omega, style["fmt"], label=lab)
@@ -80,8 +80,14 @@ def plot_backbones(backbones, ax=None, title=None, units="Hz", amplitude_unit="m
     for b in backbones:
         fig, axes = plot_backbone(b, ax=axes, units=units, amplitude_unit=amplitude_unit)
     if title and axes is not None:
-        axes[0].set_title(title)
+        axes[0].set_title(_tex_safe(title, 120))
     return fig, axes
+
+
+def _tex_safe(text, max_length=80):
+    from .output import tex_safe
+
+    return tex_safe(text, max_length)
 
 
 def joint_law_table(fits) -> str:

@@ -63,7 +63,7 @@ def plot_level_equality(adequacy, ax=None):
         ax.errorbar(x, e.values / ref, yerr=1.96 * e.stderr / abs(ref), fmt="o-", capsize=3,
                     label=f"{tex_safe(e.name)} ({'differs' if e.differs else 'same'}, p = {e.p_value:.2g})")
     if adequacy.equality:
-        ax.set_xticks(np.arange(len(adequacy.equality[0].levels)), [str(v) for v in adequacy.equality[0].levels])
+        ax.set_xticks(np.arange(len(adequacy.equality[0].levels)), [tex_safe(v) for v in adequacy.equality[0].levels])
     ax.axhline(1.0, color="0.5", lw=0.8)
     ax.set_xlabel("force level F [N]")
     ax.set_ylabel("parameter / common value [1]")
