@@ -259,7 +259,7 @@ def test_summary_and_plot(tmp_path):
     fig.savefig(tmp_path / "frf.png")
     s = frequency_response(seed_model(), 1.0, np.linspace(160, 180, 41))
     fig2, ax2 = s.plot(quantity="amplitude", linear=s.q_max)
-    assert ax2.get_ylabel() == "fundamental amplitude"
+    assert ax2.get_ylabel() == "fundamental amplitude [m]"
     import matplotlib.pyplot as plt
 
     plt.close(fig)

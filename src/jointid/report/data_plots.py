@@ -27,7 +27,7 @@ def new_figure(nrows=1, ncols=1, figsize=(6.0, 4.0)):
     return fig, fig.subplots(nrows, ncols, squeeze=False)
 
 
-def plot_broadband_fit(fit, ax=None, q=None, label=None, q_unit="m"):
+def plot_broadband_fit(fit, ax=None, q=None, label=None, q_unit="unit of q"):
     """Identified stiffness curve ``h(q, 0) / m`` of a :class:`~jointid.identify.broadband.BroadbandFit`.
 
     Parameters
@@ -36,6 +36,8 @@ def plot_broadband_fit(fit, ax=None, q=None, label=None, q_unit="m"):
     ax : matplotlib axes, optional
     q : array, optional
         Displacements at which to draw it (default ``±q_max`` of the fit).
+    q_unit : str
+        Unit of the response coordinate (``"m"``, or ``"V"`` for an electronic oscillator).
     """
     if ax is None:
         _, axes = new_figure()

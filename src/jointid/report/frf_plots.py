@@ -14,8 +14,8 @@ import numpy as np
 __all__ = ["plot_frequency_response"]
 
 _QUANTITIES = {
-    "q_max": ("q_max", r"$q_{\max}$"),
-    "amplitude": ("amplitude", "fundamental amplitude"),
+    "q_max": ("q_max", r"$q_{\max}$ [m]"),
+    "amplitude": ("amplitude", "fundamental amplitude [m]"),
     "phase": ("phase", "phase [rad]"),
 }
 
@@ -74,8 +74,10 @@ def plot_frequency_response(
         raise ValueError(f"quantity must be one of {sorted(_QUANTITIES)}, got {quantity!r}")
     import matplotlib.pyplot as plt
 
+    from .figure_meta import ReportFigure
+
     if ax is None:
-        fig, ax = plt.subplots(figsize=(6.4, 4.2))
+        fig, ax = plt.subplots(figsize=(6.4, 4.2), FigureClass=ReportFigure)
     else:
         fig = ax.figure
     attr, ylabel = _QUANTITIES[quantity]
