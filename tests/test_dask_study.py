@@ -59,20 +59,34 @@ def test_two_workers_give_the_serial_results_bit_for_bit(cluster, serial, tmp_pa
     assert res.statistics == ref.statistics
 
 
-def test_a_killed_worker_does_not_change_the_study(serial, tmp_path):
-    """A worker process killed mid-study: its campaigns run again elsewhere; same results, all campaigns."""
+def test_a_killed_worker_does_not_change_the_study(serial, tmp_path, monkeypatch):
+    """A worker process killed mid-study: its campaigns run again elsewhere; same results, all campaigns;
+    the killed worker's scratch folder does not stay in the temporary directory."""
+    import tempfile
+
     ref, lines, _ = serial
-    path = tmp_path / "campaigns.jsonl"
+    out = tmp_path / "study"
+    path = out / "campaigns.jsonl"
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setenv("TMPDIR", str(scratch))  # the workers' temporary directory
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     with local_cluster(2) as cl, distributed.Client(cl) as client:
         pids = client.run(os.getpid)
         with ThreadPoolExecutor(1) as pool:
-            running = pool.submit(run_study, small_plan(campaigns=8, seed=21), tmp_path, client=client, report=False)
+            running = pool.submit(run_study, small_plan(campaigns=8, seed=21), out, client=client, report=False)
             t0 = time.monotonic()
             while not (path.is_file() and path.read_text().count("\n") >= 1) and time.monotonic() - t0 < 120:
                 time.sleep(0.05)
-            busy = [addr for addr, tasks in client.processing().items() if tasks]
-            victim = pids[busy[0] if busy else next(iter(pids))]
+            t0 = time.monotonic()  # a victim in the middle of a campaign: its scratch folder is there
+            while True:
+                busy = [pid for pid in pids.values() if list(scratch.glob(f"jointid-study-{pid}-*"))]
+                if busy or time.monotonic() - t0 > 60:
+                    break
+                time.sleep(0.01)
+            victim = busy[0] if busy else next(iter(pids.values()))
             n_before = path.read_text().count("\n")
+            had_scratch = list(scratch.glob(f"jointid-study-{victim}-*"))
             os.kill(victim, signal.SIGKILL)
             res = running.result(timeout=300)
         assert n_before < 8  # the worker died while campaigns were still to run
@@ -80,6 +94,7 @@ def test_a_killed_worker_does_not_change_the_study(serial, tmp_path):
     assert res.n_run == 8 and not res.failed
     assert path.read_bytes() == lines
     assert res.statistics == ref.statistics
+    assert had_scratch and not list(scratch.glob("jointid-study-*"))
 
 
 @pytest.mark.filterwarnings("ignore::jointid.errors.JointidWarning")
