@@ -31,7 +31,8 @@ LABELS = {
     "setting", "terms", "rule", "selected model", "coefficient", "fit", "band average", "reference", "folder",
     "manifest names", "formats", "failed", "UFF = CSV", "in [2, 3]", "n within [2, 3]", "parameters", "other",
     "peak resolved by the dwells", "outlier records", "parameter", "equality across force levels", "campaigns",
-    "grid point", "grid_point", "n", "n (missing)", "details", "kind", "source", "data set", "name",
+    "grid point", "grid_point", "n", "n (missing)", "details", "kind", "source", "data set", "name", "set", "method",
+    "test set", "choice",
 }
 UNIT = re.compile(r"\[([^\]]+)\]")
 
@@ -104,7 +105,7 @@ def check_header(header, gain_free, where):
         assert unit == "rad/s", f"{where}: {header!r} is an angular frequency: rad/s"
     if re.search(r"(^|\s)(f1|f|peak f|frequency|folds)(\s|$)", name) and not header.startswith("F "):
         assert unit == "Hz", f"{where}: {header!r} is a frequency: Hz"
-    if re.search(r"\bk3\b", name) and "joint" not in name:
+    if re.search(r"\bk3\b(?!/k)", name) and "joint" not in name and "raw" not in name:
         if gain_free:
             assert "k3/m" in name and unit == "1/(m² s²)", f"{where}: {header!r} must be k3/m [1/(m² s²)]"
         else:
@@ -300,3 +301,9 @@ def test_modal_console_carries_units(tmp_path, capsys):
     text = capsys.readouterr().out
     assert re.search(r"FE frequencies \[Hz\]: 26\.4", text), text
     assert re.search(r"at x = 0\.42 m", text)
+
+
+@pytest.mark.slow
+def test_public_data_report_tables_carry_units(tmp_path, shared_data):
+    main(["public-data", "--out", str(tmp_path / "pub")])
+    check_page(tmp_path / "pub" / "report.html")

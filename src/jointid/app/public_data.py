@@ -520,7 +520,7 @@ class UnespDwellResult:
         if self.alternatives:
             tables.append(("Sensitivity to the response channel and the harmonics", [
                 {"choice": a["label"], "f1 [Hz]": f"{a['f1_hz']:.4f}", "k3/m [1/(m² s²)]": f"{a['k3_over_m']:.4g}",
-                 "gain": f"{a['gain']:.4g}", "per-dwell omega1 spread [%]": f"{100 * a['omega1_spread']:.2f}"}
+                 "force gain g [N/V]": f"{a['gain']:.4g}", "per-dwell omega1 spread [%]": f"{100 * a['omega1_spread']:.2f}"}
                 for a in self.alternatives], None))
         return paras, tables
 
