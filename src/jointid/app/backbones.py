@@ -369,7 +369,10 @@ def backbones_from_results(results, n_points=40, n_harmonics=1) -> CampaignBackb
         errors = {}
         model_bb = None
         m = next((m for m in models if m.get("preload") == p), None)
-        if m is not None:
+        e = saved.get(p) or {}
+        if m is not None and "terms" not in m and e.get("model"):  # a model kept as its backbone (first harmonics)
+            model_bb = Backbone.from_summary(e["model"])
+        elif m is not None:
             try:
                 model_bb = preload_model_backbone(m, n_points=n_points, n_harmonics=n_harmonics, label=f"preload {p}")
             except JointidError as exc:
