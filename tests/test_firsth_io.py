@@ -172,3 +172,28 @@ def test_columns_need_accel_or_frf_not_both():
         first_harmonic_from_columns({"frequency_hz": [80.0], "force": [1.0]}, "x.csv", 2)
     with pytest.raises(RecordError, match=r"x.csv \[record 2, channel 'frequency_hz'\]"):
         first_harmonic_from_columns({"frequency_hz": [-80.0], "force": [1.0], "accel": [1.0]}, "x.csv", 2)
+
+
+def test_a_ringdown_without_force_is_imported_from_a_mat_struct_with_its_time_vector(tmp_path):
+    from jointid.io.campaign import read_record
+
+    t = -0.01 + np.arange(2000) / 1000.0
+    acc = np.exp(-t) * np.sin(2 * np.pi * 80 * t)
+    savemat(tmp_path / "hi.mat", {"HIdata": {"time": t, "acc3": acc, "acc1": 2 * acc}})
+    desc = _write(tmp_path / "imp.toml", """
+[campaign]
+name = "impact"
+[[record]]
+file = "hi.mat"
+excitation = "ringdown"
+time = "HIdata.time"
+channels = { accel = "HIdata.acc3" }
+""")
+    res = import_campaign(desc, tmp_path / "camp")
+    assert not res.failed, res.report()
+    spec = load_campaign(tmp_path / "camp").records[0]
+    assert spec.excitation == "ringdown"
+    data = read_record(spec, required=("time", "accel"))
+    assert "force" not in data.channels
+    np.testing.assert_allclose(data.time, t, atol=1e-12)
+    np.testing.assert_allclose(data.channels["accel"], acc, rtol=1e-12)
