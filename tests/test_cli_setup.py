@@ -58,6 +58,23 @@ def test_every_option_of_every_subcommand_has_help():
     assert {"identify", "simulate", "example", "backbone", "modal", "demo", "study", "import"} <= set(_subcommands(parser))
 
 
+def test_public_data_options_have_help(monkeypatch):
+    """``public-data`` has its own parser (jointid.app.public_data.main): caught as it parses."""
+    seen = []
+
+    def catch(self, args=None, namespace=None):
+        seen.append(self)
+        raise SystemExit(0)
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", catch)
+    with pytest.raises(SystemExit):
+        main(["public-data", "--help"])
+    (parser,) = seen
+    missing = [a.option_strings for a in parser._actions if not (a.help or "").strip()]
+    assert {"--out", "--only"} <= {o for a in parser._actions for o in a.option_strings}
+    assert not missing, missing
+
+
 def test_public_names_are_listed_and_import_stays_light():
     names = dir(jointid)
     for name in ("identify_campaign", "IdentifySettings", "simulate_campaign", "load_campaign", "frequency_response",
