@@ -516,8 +516,11 @@ def _solve(levels, fl, dl, a_ref, x0, max_nfev=4000):
     lo = [-np.inf, -np.inf, -np.inf, 0.0] + fl.bounds()[0] + [0.0] + dl.bounds()[0]
     hi = [np.inf, np.inf, np.inf, np.inf] + fl.bounds()[1] + [np.inf] + dl.bounds()[1]
     x0 = np.clip(x0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
-    sol = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                                 max_nfev=max_nfev, method="trf")
+    try:
+        sol = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", xtol=1e-12, ftol=1e-12,
+                                     gtol=1e-12, max_nfev=max_nfev, method="trf")
+    except ValueError as exc:  # residuals not finite at the start (a degenerate level)
+        raise IdentificationError(f"the first-harmonic fit cannot start: {exc}") from None
     return sol, model.with_params(sol.x), resid
 
 
@@ -661,7 +664,7 @@ def leave_one_level_out(levels, frequency_law="poly2", damping_law="poly1", a_re
             out.append({"label": lv.label, "prediction": pr, "peaks": pr.peaks(),
                         "amplitude_rms_rel": pr.amplitude_rms_rel, "phase_rms_deg": pr.phase_rms_deg,
                         "complex_rms_rel": pr.complex_rms_rel})
-        except IdentificationError as exc:
+        except (IdentificationError, np.linalg.LinAlgError) as exc:
             out.append({"label": lv.label, "error": str(exc)})
     return out
 
