@@ -168,12 +168,16 @@ def _bad_h5(path, kind, layout="generic"):
             c["force"] = np.zeros(t.size, dtype=[("a", "f8"), ("b", "i4")])
         elif kind == "complex":
             c["force"] = np.exp(1j * t)
+        elif kind == "vlen_text":
+            c.create_dataset("force", data=np.array(["1.0"] * t.size, dtype=object), dtype=h5py.string_dtype())
+        elif kind == "empty":
+            c.create_dataset("force", data=h5py.Empty("f8"))
         else:  # a compressed dataset of 1e11 values stored in a few kilobytes (never written)
             c.create_dataset("force", shape=(100_000_000_000,), dtype="f8", compression="gzip", chunks=(1 << 20,))
 
 
 @pytest.mark.parametrize("kind, words", [("text", "text"), ("compound", "compound"), ("complex", "complex"),
-                                         ("huge", "more than the limit")])
+                                         ("vlen_text", "text"), ("empty", "empty"), ("huge", "more than the limit")])
 def test_import_of_hdf5_datasets_of_the_wrong_kind(tmp_path, capsys, kind, words):
     _bad_h5(tmp_path / "d.h5", kind)
     (tmp_path / "d.toml").write_text('[import]\nfs = 512.0\nchannels = { force = "force", accel = "accel" }\n'

@@ -101,9 +101,13 @@ def correct_channel_delay(outcomes, settings, use=None):
         refused = delay_refusal(delay)
         if refused:
             return outcomes, None, refused
+        try:  # an estimate beyond a channel delay's size is reported, not applied
+            _check_plausible(outcomes, delay)
+        except IdentificationError as exc:
+            return outcomes, None, str(exc)
     else:
         delay = ChannelDelay(float(mode), 0.0, source="given")
-    _check_plausible(outcomes, delay)
+        _check_plausible(outcomes, delay)  # a given delay that cannot be one is refused (exit 2)
     fixed = []
     for o in outcomes:
         if not o.ok:

@@ -82,11 +82,15 @@ def check_dataset(ds, path, channel: str, name: str | None = None) -> None:
     name = ds.name if name is None else name
     dt = ds.dtype
     if dt.names is not None or dt.kind not in "iuf":
-        what = ("compound records" if dt.names is not None else "text" if dt.kind in "SUO" else
+        text = dt.kind in "SU" or _h5py().check_string_dtype(dt) is not None
+        what = ("compound records" if dt.names is not None else "text" if text else
+                "variable-length or object values" if dt.kind == "O" else
                 "complex numbers" if dt.kind == "c" else "booleans" if dt.kind == "b" else f"dtype {dt}")
         raise RecordError(f"{where(path, channel=channel)}expected real numbers in dataset {name!r}, got {what} "
                           f"(dtype {dt})")
-    size = int(np.prod(ds.shape, dtype=np.int64)) if ds.shape is not None else 0
+    if ds.shape is None:
+        raise RecordError(f"{where(path, channel=channel)}dataset {name!r} is empty (no dataspace)")
+    size = int(np.prod(ds.shape, dtype=np.int64))
     if size > MAX_SAMPLES:
         raise RecordError(f"{where(path, channel=channel)}dataset {name!r} holds {size} values (shape {ds.shape}), "
                           f"more than the limit of {MAX_SAMPLES} samples of a record")
