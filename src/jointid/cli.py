@@ -446,7 +446,8 @@ def _resolve_outputs(args) -> None:
     elif args.command == "backbone":
         args.results = _results_file(args.results)
         if args.out is None:  # beside the results folder, never inside it (that folder is one run's set)
-            folder = args.results.parent.resolve()
+            folder = args.results.parent
+            folder = folder.resolve() if folder.name in ("", ".", "..") else folder
             args.out = folder.parent / f"{folder.name}-backbone"
 
 
