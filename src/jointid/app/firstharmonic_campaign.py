@@ -356,6 +356,31 @@ class FirstHarmonicCampaignResult:
                          "amplitude rms [%]": round(100 * e["amplitude_rms_rel"], 2),
                          "phase rms [deg]": round(e["phase_rms_deg"], 2)} if "peaks" in e else
                         {"level": e["label"], "error": e["error"]} for e in p.lolo], None))
+                if p.selection:
+                    tables.append((f"Preload {p.preload}: laws scored by leave-one-level-out prediction "
+                                   f"(chosen: {' / '.join(p.selection['selected'])}, the fewest parameters within one "
+                                   "standard error of the best)", [
+                                       {"wn law": t["frequency_law"], "zeta law": t["damping_law"],
+                                        "parameters": t["n_parameters"],
+                                        "complex error [%]": round(100 * t["lolo_complex_rms_rel"], 2),
+                                        "stderr [%]": round(100 * t["lolo_stderr"], 2)}
+                                       for t in sorted(p.selection["table"], key=lambda t: t["lolo_complex_rms_rel"])],
+                                   None))
+                if p.ringdowns:
+                    rows_r = []
+                    for i, b, d, m in p.ringdowns:
+                        c = m.get("vs_stepped_sine") or {}
+                        rows_r.append({
+                            "record": i, "windows": len(b),
+                            "a range [m/s^2]": f"{b.amplitude.min():.3g} .. {b.amplitude.max():.3g}",
+                            "f range [Hz]": f"{b.frequency_hz.min():.4f} .. {b.frequency_hz.max():.4f}",
+                            "monotone": m.get("monotone"),
+                            "f - f_model [Hz]": (f"{c['delta_f_hz']['min']:+.4f} .. {c['delta_f_hz']['max']:+.4f}"
+                                                 if c.get("overlap") else "no overlap"),
+                            "zeta / zeta_model": (f"{c['zeta_ratio']['min']:.2f} .. {c['zeta_ratio']['max']:.2f}"
+                                                  if c.get("overlap") else "")})
+                    tables.append((f"Preload {p.preload}: ring-downs (band-limited, windows above the noise floor) "
+                                   "against the stepped-sine model at the same amplitude", rows_r, None))
             sec = Section("First-harmonic identification", paragraphs=paras, tables=tables,
                           figures=[(c, png) for _, c, png in figs])
             paths["html"] = out / "report.html"

@@ -603,7 +603,7 @@ def fit_first_harmonic(levels, frequency_law="poly2", damping_law="poly1", *, a_
     if not levels:
         raise IdentificationError("no first-harmonic levels to fit")
     fl, dl = _law(frequency_law), _law(damping_law)
-    n_par = 6 + fl.n + dl.n
+    n_par = 5 + fl.n + dl.n
     n_lines = sum(len(lv) for lv in levels)
     if 2 * n_lines <= n_par:
         raise IdentificationError(f"{n_lines} lines give {2 * n_lines} real values for {n_par} parameters; "
@@ -694,7 +694,7 @@ def select_laws(levels, candidates=DEFAULT_CANDIDATES, a_ref=None) -> dict:
         table.append({"frequency_law": fl, "damping_law": dl, "lolo_complex_rms_rel": score,
                       "lolo_stderr": se,
                       "per_level": [None if not np.isfinite(e) else float(e) for e in errs],
-                      "n_parameters": 6 + AmplitudeLaw(fl).n + AmplitudeLaw(dl).n})
+                      "n_parameters": 5 + AmplitudeLaw(fl).n + AmplitudeLaw(dl).n})
     finite = [t for t in table if np.isfinite(t["lolo_complex_rms_rel"])]
     if not finite:
         raise IdentificationError("no candidate law could be fitted on the levels")
