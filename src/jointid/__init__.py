@@ -17,8 +17,6 @@ mapping, laws, uncertainty) -> ``simulate`` (harmonic balance, time integration)
 workflows a command runs and :mod:`jointid.cli` is the command line.
 """
 
-from __future__ import annotations
-
 __version__ = "0.1.0"
 
 #: Public names and the module each comes from; a module is imported on first use of one of
