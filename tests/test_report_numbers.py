@@ -120,7 +120,7 @@ def test_no_selection_no_extra_table_and_a_selected_preload_model_is_not_shown_t
     same = dict(s, models=[dict(s["models"][0], parameter_names=chosen["parameter_names"],
                                 parameters=chosen["parameters"], stderr=chosen["stderr"])])
     assert selected_model_rows(same) == []
-    assert "the model identified above" in model_choice_lines(same)[0]
+    assert "the preload model shown below" in model_choice_lines(same)[0]
 
 
 def test_adequacy_is_a_table_of_named_quantities_not_a_negative_fraction():

@@ -258,7 +258,7 @@ def model_choice_lines(summary) -> list:
         behind = (f"; the paper's cubic is {format_value(cubic.get('delta_ic'), 3)} behind in {crit}"
                   if cubic and _finite(cubic.get("delta_ic")) and name != "cubic" else "")
         if _same_model(m, chosen):
-            out.append(f"Preload {p}: the data select the {name} model, the model identified above (lowest {crit} "
+            out.append(f"Preload {p}: the data select the {name} model, the preload model shown below (lowest {crit} "
                        f"among the candidates{behind})" + (f"; adequacy: {verdict}." if verdict else "."))
         elif holds is False:
             out.append(f"Preload {p}: believe the {name} model: the data select it (lowest {crit}{behind}) and the "
@@ -433,7 +433,8 @@ def selection_rows(summary) -> list:
         rows.append({"preload": str(it.get("preload", "")), "selected model": str(it.get("selected") or "–"),
                      "terms": str(it.get("selected_terms") or (chosen or {}).get("terms") or "–"),
                      "parameters": (chosen or {}).get("n_parameters", "–"),
-                     f"the paper's cubic behind by [{crit or 'IC'}]": format_value(cubic.get("delta_ic"), 3)
+                     f"the paper's cubic behind by [{crit or 'IC'}]": ("selected" if cubic.get("selected") else
+                                                                         format_value(cubic.get("delta_ic"), 3))
                      if cubic else "–",
                      "records": it.get("n_records", "–"), "rule": str(it.get("rule") or "–")})
     return rows
