@@ -11,7 +11,7 @@ import html
 
 import numpy as np
 
-from .formatting import format_ci, format_pm, format_value, html_table, unit_of
+from .formatting import format_ci, format_pm, format_value, html_table, quantity_units, unit_of
 
 __all__ = ["result_html", "coefficient_rows"]
 
@@ -24,13 +24,16 @@ def _unit(name):
     return unit_of("k3" if name == "k3" else name) if name != "omega1^2" else "rad²/s²"
 
 
-def coefficient_rows(names, values, stderr) -> list:
-    """``{name, value ± standard error, 95 % interval, unit}`` per coefficient."""
+def coefficient_rows(names, values, stderr, units=None) -> list:
+    """``{name, value ± standard error, 95 % interval, unit}`` per coefficient (``units``: the
+    run's labels and units, :func:`~jointid.report.formatting.quantity_units`)."""
+    units = units or {}
     rows = []
     for n, v, s in zip(names, np.atleast_1d(values), np.atleast_1d(stderr)):
         ci = [v - 1.96 * s, v + 1.96 * s] if np.isfinite(v) and np.isfinite(s) else None
-        rows.append({"coefficient": str(n), "value ± standard error": format_pm(v, s), "95 % interval": format_ci(ci, s),
-                     "unit": _unit(str(n))})
+        label, unit = units.get(str(n), (str(n), _unit(str(n))))
+        rows.append({"coefficient": label, "value ± standard error": format_pm(v, s), "95 % interval": format_ci(ci, s),
+                     "unit": unit})
     return rows
 
 
@@ -80,7 +83,7 @@ def _group(g) -> str:
         lines.append(f"band average of single-record k3 (the paper's number): {format_value(g.band['k3'])} N/m³")
     parts = [_head(f"GroupResult preload {g.preload}, force level {g.force_level}", lines)]
     if g.pooled is not None:
-        parts.append(_pooled_table(g.pooled))
+        parts.append(_pooled_table(g.pooled, quantity_units("unknown" if g.gain is not None else "known")))
     if g.power_law is not None:
         parts.append(_power(g.power_law, head=False))
     elif g.power_law_error:
@@ -88,13 +91,15 @@ def _group(g) -> str:
     return "".join(parts)
 
 
-def _pooled_table(p) -> str:
+def _pooled_table(p, units=None) -> str:
+    units = units or {}
     rows = _omega_rows(p.omega1, p.omega1_stderr) + [r for r in coefficient_rows(p.shared_names, p.shared,
-                                                                               p.shared_stderr)]
+                                                                               p.shared_stderr, units)]
     for j, n in enumerate(p.own_names):
         v = np.asarray(p.own)[:, j]
-        rows.append({"coefficient": f"{n} (per record)", "value ± standard error":
-                     f"{format_value(np.min(v))} .. {format_value(np.max(v))}", "95 % interval": "–", "unit": _unit(n)})
+        label, unit = units.get(n, (n, _unit(n)))
+        rows.append({"coefficient": f"{label} (per record)", "value ± standard error":
+                     f"{format_value(np.min(v))} .. {format_value(np.max(v))}", "95 % interval": "–", "unit": unit})
     return html_table(rows, caption="pooled fit (shared coefficients; per-record range)")
 
 
