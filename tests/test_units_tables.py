@@ -280,6 +280,23 @@ def test_demo_report_and_console_carry_units(tmp_path, capsys):
     check_page(tmp_path / "demo" / "report.html")
     check_console(text)
     assert "Selected model: micro-slip + cubic" in text or "Selected model:" in text
+    # the report's Table 5 band average of each preload is that preload's own (results.json)
+    from jointid.report.formatting import format_pm
+    from jointid.report.summary import band_resolution
+
+    tables = tables_of(tmp_path / "demo" / "report.html")
+    assert "the model the data select" in tables[0]["caption"]
+    (t5,) = [t for t in tables if t["caption"].startswith("The paper's Table 5")]
+    col = t5["headers"].index("k3 [N/m³] band average (paper)")
+    shown = {(r[0], r[1]): r[col] for r in t5["rows"]}
+    demo = json.loads((tmp_path / "demo" / "results.json").read_text())
+    for pr in demo["preloads"]:
+        s = pr["identification"]
+        for g in s["groups"]:
+            band = band_resolution(s, g)
+            assert band["mean"] == pytest.approx(g["k3_mean"], rel=1e-12)
+            assert shown[(str(g["preload"]), f"{g['force_level']:g}")] == format_pm(g["k3_mean"], band["stderr"])
+    assert len(set(shown.values())) == len(shown)  # 120 N and 540 N differ
 
 
 def test_backbone_console_carries_units(identified, tmp_path, capsys):
