@@ -222,3 +222,31 @@ def test_check_study_folder_accepts_an_older_study_folder(done2, tmp_path):
     assert res.n_run == 0 and read_marker(out)["kind"] == "study"
     plan = StudyPlan.from_mapping(small_plan(campaigns=2))
     assert study_mod.check_study_folder(out, plan)["plan"] == plan.fingerprint
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.0, 1.0, 3.0, 6.0, 9.0])
+def test_sigkill_around_the_final_writes_never_leaves_a_mix(done2, tmp_path, delay):
+    """``jointid study`` killed (SIGKILL) at moments around its final writes: the folder holds the
+    last complete set, or a committed one that the next run puts in place first; never a mix."""
+    out = _copy(done2, tmp_path)
+    plan = _plan_file(tmp_path, campaigns=3)
+    proc = subprocess.Popen([sys.executable, "-m", "jointid.cli", "study", str(plan), "--out", str(out), "--quiet"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t0 = time.monotonic()
+    while (out / "campaigns.jsonl").read_text().count("\n") < 3 and time.monotonic() - t0 < 120:
+        time.sleep(0.005)
+    time.sleep(delay)  # the last campaign is saved: the final files are being written
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=60)
+    ready = list(out.glob(".final.*.ready"))
+    if list(out.glob(".final.*.tmp")):  # killed while writing the new set: the old set is in place
+        study = json.loads((out / "study.json").read_text())
+        assert study["n_campaigns"] == int(read_marker(out)["campaigns"]) == 2
+        assert (out / "report.html").read_bytes() == (done2 / "report.html").read_bytes()
+    elif not ready:  # before the new set was started or after its last rename: one complete set
+        assert _final_consistent(out)[0] in (2, 3)
+    print(f"SIGKILL {delay} s after the last campaign: exit {proc.returncode}, ready folder {bool(ready)}, "
+          f"marker {read_marker(out)['campaigns']} campaigns")
+    res = run_study(small_plan(campaigns=3), out, report=True)
+    assert res.n_run == 0 and _final_consistent(out)[0] == 3
