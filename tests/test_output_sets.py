@@ -177,3 +177,27 @@ def test_symlink_loop_as_out_is_a_clear_error(campaign, tmp_path, capsys):
     loop = tmp_path / "loop"
     loop.symlink_to(loop)
     _refused(["identify", campaign, "--out", loop] + FAST, capsys, "link")
+
+
+def test_a_set_killed_between_its_two_renames_is_put_in_place_by_the_next_run(tmp_path):
+    """Killed after the old set was moved aside and before the new one was moved in: the new set
+    is complete (its marker is written last) and is put in place, not removed with the old one."""
+    import subprocess
+    import sys
+
+    from jointid.io.outputset import remove_leftovers
+
+    dead = int(subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                              text=True).stdout)
+    out = tmp_path / "out"
+    with output_set(out, "20260101T000000Z-aaaaaa", kind="identify") as tmp:
+        (tmp / "results.json").write_text("old\n")
+    out.rename(tmp_path / f".out.old.{dead}-20260101T000001Z-bbbbbb.tmp")
+    new = tmp_path / f".out.new.{dead}-20260101T000001Z-bbbbbb.tmp"
+    shutil.copytree(tmp_path / f".out.old.{dead}-20260101T000001Z-bbbbbb.tmp", new)
+    (new / "results.json").write_text("new\n")
+    half = tmp_path / f".out.new.{dead}-20260101T000002Z-cccccc.tmp"  # a set killed mid-write: no marker
+    half.mkdir()
+    remove_leftovers(out)
+    assert (out / "results.json").read_text() == "new\n"
+    assert not list(tmp_path.glob(".out.*"))

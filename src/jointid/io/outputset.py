@@ -231,13 +231,23 @@ def check_command_output(command: str, out, inputs=()) -> Path:
 def remove_leftovers(out) -> None:
     """Temporary sets of earlier runs on ``out`` whose process is gone (killed mid-write)."""
     out = Path(out)
-    for p in out.parent.glob(f".{out.name}.*-*.tmp"):
+    dead = []
+    for p in sorted(out.parent.glob(f".{out.name}.*-*.tmp")):
         try:
-            pid = int(p.name[len(out.name) + 2:].split(".", 2)[1].split("-")[0])
+            stage, rest = p.name[len(out.name) + 2:].split(".", 2)[:2]
+            pid = int(rest.split("-")[0])
         except (IndexError, ValueError):
             continue
         if not pid_alive(pid):
-            shutil.rmtree(p, ignore_errors=True)
+            dead.append((stage, p))
+    for stage, p in dead:
+        # killed between moving the old set aside and the new one in: the new set is complete
+        # (its marker is written last), so it is put in place rather than lost with the old one
+        if stage == "new" and not out.exists() and not out.is_symlink() and read_marker(p) is not None \
+                and read_marker(p)["files"] is not None:
+            os.replace(p, out)
+            continue
+        shutil.rmtree(p, ignore_errors=True)
 
 
 @contextlib.contextmanager
