@@ -86,10 +86,12 @@ def test_table4_analogue_and_updating(demo):
         np.testing.assert_allclose(pr.structure.phi_sensors[:, 0], pr.rig.model.sensor_shapes[:, 0], rtol=5e-3)
 
 
-def test_every_check_but_runtime_passes(demo):
-    """The run time is measured by benchmarks/bench_demo.py (a loaded test machine would make it flaky)."""
-    failed = [k for k, ok in demo.checks["passed"].items() if not ok and k != "runtime_s"]
+def test_every_check_passes_and_runtime_is_no_verdict(demo):
+    """The run time is information (timings), not a check: a slow machine must not fail the demo."""
+    failed = [k for k, ok in demo.checks["passed"].items() if not ok]
     assert not failed, demo.report()
+    assert "runtime_s" not in demo.checks["passed"] and "runtime_s" not in demo.checks["limits"]
+    assert demo.checks["values"]["runtime_s"] > 0 and demo.timings["total"] > 0
     assert demo.checks["values"]["uff_csv_identical"] == [True, True]
 
 

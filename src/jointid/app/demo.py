@@ -56,7 +56,6 @@ CHECK_LIMITS = {
     "peak_amplitude_error_percent": 2.0,
     "peak_frequency_error_percent": 0.1,
     "n_range": (2.0, 3.0),
-    "runtime_s": 60.0,
 }
 
 
@@ -492,8 +491,7 @@ def _checks(results, total_time) -> dict:
     same = [pr.uff_csv_identical for pr in results]
     v["uff_csv_identical"] = same
     ok["uff_csv_identical"] = all(s is True for s in same)
-    v["runtime_s"] = total_time
-    ok["runtime_s"] = total_time < CHECK_LIMITS["runtime_s"]
+    v["runtime_s"] = total_time  # information (the timings table), never a verdict: machines differ in speed
     v["n_failed_records"] = sum(len(pr.result.failed) for pr in results)
     ok["no_failed_records"] = v["n_failed_records"] == 0
     return {"values": v, "passed": ok, "limits": {k: (list(x) if isinstance(x, tuple) else x)

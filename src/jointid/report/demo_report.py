@@ -274,7 +274,6 @@ def check_rows(demo) -> list:
         "peak_amplitude_error_percent_max": "re-predicted FRF peak amplitude (max |error| %, limit 2)",
         "peak_frequency_error_percent_max": "re-predicted FRF peak frequency (max |error| %, limit 0.1)",
         "uff_csv_identical": "UFF58 records read back identical to the CSV ones",
-        "runtime_s": "whole demo under 60 s",
         "no_failed_records": "records that failed (none allowed)",
     }
     value_key = {"damping_grows_with_amplitude": "damping_vs_amplitude_correlation_min",
