@@ -96,3 +96,13 @@ def test_cli_identify_writes_the_set(tmp_path, capsys):
     assert s["selection"][0]["selected"] == ["poly2", "poly1"]  # chosen by leave-one-level-out: the true laws
     assert (tmp_path / "res" / "figures" / "frf_beam.png").is_file()
     assert (tmp_path / "res" / "report.html").is_file()
+
+
+def test_options_of_time_records_are_reported_as_unused(tmp_path):
+    from jointid.app.records import IdentifySettings
+
+    camp = _campaign(tmp_path / "camp", ringdown=False)
+    with pytest.warns(JointidWarning, match="n_harmonics not used"):
+        res = identify_first_harmonic_campaign(camp, IdentifySettings(n_harmonics=3), laws=("poly2", "poly1"),
+                                               lolo=False)
+    assert "n_harmonics not used" in res.summary()["warnings"][0] and "note: n_harmonics" in res.report()

@@ -182,6 +182,7 @@ class FirstHarmonicCampaignResult:
     groups: tuple = ()  # no force-state groups: the keys of a stepped-sine identification stay empty
     models: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)  # more top-level keys of results.json (worked examples)
+    notes: tuple = ()  # run-level messages (options that do not apply ...)
 
     @property
     def failed(self):
@@ -241,6 +242,7 @@ class FirstHarmonicCampaignResult:
             "selection": [{"preload": p.preload, **(p.selection or {"selected": list(self.laws or ())})}
                           for p in self.preloads],
             "first_harmonic": [p.summary() for p in self.preloads],
+            "warnings": list(self.notes),
             **self.extra,
         }
 
@@ -248,6 +250,7 @@ class FirstHarmonicCampaignResult:
         lines = [f"Campaign {self.name!r}: {len(self.records)} records (first harmonics), {len(self.failed)} failed"]
         for r in self.failed:
             lines.append(f"  failed: {r.error}")
+        lines += [f"  note: {n}" for n in self.notes]
         for p in self.preloads:
             lines.append("")
             lines.append(f"Preload {p.preload}:")
@@ -417,10 +420,17 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
 
     if not isinstance(campaign, Campaign):
         campaign = load_campaign(campaign)
-    if settings is None:
-        from .records import IdentifySettings
+    from .records import IdentifySettings
 
+    if settings is None:
         settings = IdentifySettings()
+    default = IdentifySettings()
+    unused = [k for k in ("terms", "n_harmonics", "damping_order", "force_gain", "channel_delay")
+              if getattr(settings, k) != getattr(default, k) and not (k == "terms" and settings.terms == "auto")]
+    run_notes = []
+    if unused:  # said, not ignored silently: these choices belong to the force-state mapping of time records
+        run_notes.append(f"{', '.join(unused)} not used: a first-harmonic campaign is identified as one nonlinear "
+                         f"mode with amplitude laws chosen by leave-one-level-out")
     outcomes, levels_of, ring_of = [], {}, {}
     for spec in campaign.records:
         if spec.excitation == "ringdown":
@@ -476,10 +486,10 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
             except JointidError as exc:
                 outcomes[i] = RecordOutcome(spec, False, f"{where(spec.file, spec.index)}{exc}", kind="ringdown")
         preloads.append(FirstHarmonicPreload(preload, fit, sel, lo, adq, tuple(rings), errors))
-    notes = [f"preload {p.preload}: {k}: {e}" for p in preloads for k, e in p.errors.items()]
+    notes = run_notes + [f"preload {p.preload}: {k}: {e}" for p in preloads for k, e in p.errors.items()]
     notes += [f"record failed: {o.error}" for o in outcomes if not o.ok]
     if notes:  # one summary warning; every message stays on its record and in results.json
         warnings.warn(f"{len(notes)} problem(s) in the first-harmonic campaign:\n  " + "\n  ".join(notes),
                       JointidWarning, stacklevel=2)
     return FirstHarmonicCampaignResult(campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(preloads),
-                                       tuple(laws) if laws else None)
+                                       tuple(laws) if laws else None, notes=tuple(run_notes))
