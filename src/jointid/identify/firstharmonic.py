@@ -541,7 +541,7 @@ def _covariance(sol, model, levels):
     w, a, H = _stack(levels)
     F = np.concatenate([lv.force for lv in levels])
     h = 1e-6 * a
-    dH = (model.frf(w, a + h) - model.frf(w, a - h)) / (2 * h)  # noise of r: F dH/da (h . e) - e, e = dH / |H|
+    dH = (model.frf(w, a + h) - model.frf(w, a - h)) / (2 * h)  # r's noise: F dH/da (h . e) - e, e = delta H / |H|
     hh = H / np.abs(H)
     M00 = F * dH.real * hh.real - 1
     M01 = F * dH.real * hh.imag
@@ -568,7 +568,7 @@ def _fit_core(levels, fl, dl, a_ref):
     starts = [fl.start()]
     if fl.kind == "power+quadratic":  # softening at low amplitude, hardening above
         starts = [[-1e-2, 1.0, 1e-2], [-1e-2, 2.0, 1e-2]]
-    elif fl.kind != "power":  # a second start: the frequency law's lowest-order slope from the levels' peaks
+    elif fl.kind != "power":  # a second start: a slight softening slope
         starts.append([-1e-3] + [0.0] * (fl.n - 1))
     for fs in starts:
         x = np.array(base + fs + [sol0.x[4]] + dl.start(), float)
