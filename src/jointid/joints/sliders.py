@@ -1,0 +1,237 @@
+"""Jenkins elements (spring in series with a Coulomb slider) and their parallel (discrete Iwan) sets.
+
+Element ``i`` has stiffness ``k_i`` and slip force ``F_i`` (slip displacement
+``phi_i = F_i / k_i``).  Its slider position ``x_i`` is the state; the element carries
+``k_i (u - x_i)`` with ``|u - x_i| <= phi_i``, and one step of the motion to ``u`` moves the
+slider by the play operator ``x_i <- clip(x_i, u - phi_i, u + phi_i)``.  The laws are rate
+independent and exact for any sampled motion (the sliders only move at the samples' extremes
+of each monotone stretch, which the play operator sees exactly).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from ..errors import StructureError
+from ._core import JointLaw, _number, _scalar_out
+
+__all__ = ["Jenkins", "DiscreteIwan"]
+
+
+def _slider_aft(u, k, phi, x0, jacobian):
+    """Periodic force of parallel Jenkins elements over one sampled period (two sweeps).
+
+    The first sweep starts from ``x0`` (the state at sample 0 before the period) and ends in
+    the periodic state of every element that slipped: once the motion has passed its
+    largest and its smallest sample, an element that slipped holds a state independent of
+    where it started (Masing).  The second sweep gives the force.  An element that never
+    slips keeps ``x0``.  The Jacobian follows the same sweep: the play operator returns
+    either the old slider position or ``u_j -+ phi``, so ``d x_i(t_j) / d u`` is the unit
+    vector of the sample where element ``i`` last slipped (zero if it never did).
+    """
+    u = np.asarray(u, float)
+    n = u.shape[-1]
+    batch = u.shape[:-1]
+    m = k.size
+    x = np.array(np.broadcast_to(x0, batch + (m,)), dtype=float)
+    ktot = float(k.sum())
+    f = np.empty(u.shape)
+    last = np.full(x.shape, -1, dtype=np.intp)
+    lasts = np.empty((n,) + x.shape, dtype=np.intp) if jacobian else None
+    for step in range(2 * n):
+        j = step % n
+        uj = u[..., j, None]
+        xn = np.minimum(np.maximum(x, uj - phi), uj + phi)
+        if jacobian:
+            last = np.where(xn != x, j, last)
+        x = xn
+        if step >= n:
+            f[..., j] = ktot * u[..., j] - x @ k
+            if jacobian:
+                lasts[j] = last
+    if not jacobian:
+        return f, None
+    nb = int(np.prod(batch, dtype=int))
+    L = lasts.reshape(n, nb, m)
+    rows = np.broadcast_to(np.arange(n)[:, None, None], L.shape)
+    bidx = np.broadcast_to(np.arange(nb)[None, :, None], L.shape)
+    w = np.broadcast_to(k, L.shape)
+    seen = L >= 0
+    flat = (bidx * n * n + rows * n + L)[seen]
+    D = -np.bincount(flat, weights=w[seen], minlength=nb * n * n).reshape(nb, n, n)
+    D[:, np.arange(n), np.arange(n)] += ktot
+    return f, D.reshape(batch + (n, n))
+
+
+@dataclass(frozen=True, eq=False)
+class DiscreteIwan(JointLaw):
+    """``N`` Jenkins elements in parallel (a discrete Iwan model).
+
+    Parameters
+    ----------
+    stiffness : array (N,)
+        Element stiffnesses ``k_i`` [N/m] (> 0).
+    slip_force : array (N,)
+        Element slip forces ``F_i`` [N] (> 0).
+
+    State: the slider positions ``x_i`` [m], shape ``(..., N)``.
+    """
+
+    stiffness: np.ndarray
+    slip_force: np.ndarray
+    UNITS: ClassVar[dict] = {"stiffness": "N/m", "slip_force": "N"}
+    masing: ClassVar[bool] = True
+    name: ClassVar[str] = "discrete Iwan"
+
+    def __post_init__(self):
+        k = np.array(self.stiffness, dtype=float).ravel()
+        F = np.array(self.slip_force, dtype=float).ravel()
+        if k.shape != F.shape or k.size == 0:
+            raise StructureError(
+                f"{self.name}: stiffness ({k.size} values) and slip_force ({F.size} values) must have the same, "
+                "non-zero length"
+            )
+        if not (np.all(np.isfinite(k)) and np.all(k > 0) and np.all(np.isfinite(F)) and np.all(F > 0)):
+            raise StructureError(f"{self.name}: element stiffnesses and slip forces must be positive and finite")
+        for nm, a in (("stiffness", k), ("slip_force", F)):
+            a.setflags(write=False)
+            object.__setattr__(self, nm, a)
+
+    # --- parameters ---------------------------------------------------------------
+    @property
+    def parameters(self) -> dict:
+        return {"stiffness": self.stiffness.tolist(), "slip_force": self.slip_force.tolist()}
+
+    @property
+    def slip_displacement(self) -> np.ndarray:
+        """``phi_i = F_i / k_i`` [m]."""
+        return self.slip_force / self.stiffness
+
+    @property
+    def n_elements(self) -> int:
+        return int(self.stiffness.size)
+
+    @property
+    def n_state(self) -> int:
+        return self.n_elements
+
+    @property
+    def total_stiffness(self) -> float:
+        """Stiffness with every element stuck [N/m]."""
+        return float(self.stiffness.sum())
+
+    @property
+    def total_slip_force(self) -> float:
+        """Force with every element slipping (macro-slip) [N]."""
+        return float(self.slip_force.sum())
+
+    def derived(self) -> dict:
+        return {
+            "n_elements": self.n_elements,
+            "total_stiffness": self.total_stiffness,
+            "total_slip_force": self.total_slip_force,
+        }
+
+    # --- protocol -----------------------------------------------------------------
+    def force(self, u, state, v=None):
+        """One step to relative motion ``u`` (any shape): ``(f, new_state)``; ``v`` is unused."""
+        u = np.asarray(u, float)
+        uu = u[..., None]
+        phi = self.slip_displacement
+        x = np.minimum(np.maximum(np.asarray(state, float), uu - phi), uu + phi)
+        return self.total_stiffness * u - x @ self.stiffness, x
+
+    def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
+        """Periodic force over one sampled period and its exact Jacobian.
+
+        Parameters
+        ----------
+        u_t : array (..., n)
+            Relative motion at ``n`` equispaced instants of one period.
+        v_t : ignored (rate independent).
+        velocity_jacobian : bool
+            Also return ``df_dv`` (zeros).
+        jacobian : bool
+            ``False``: skip the Jacobians (returned as ``None``), for long periods.
+        state0 : array (..., N), optional
+            Slider positions before the period (default: the virgin state); only elements
+            that never slip over the period keep it.
+
+        Returns
+        -------
+        f_t : array (..., n)
+        df_du : array (..., n, n)
+            Dense; ``df_du[..., j, m] = d f_j / d u_m``.  At most ``N + 1`` non-zeros per row
+            (the diagonal and the sample where each element last slipped, which may lie
+            later in the period: the slip history wraps round).
+        """
+        u = np.asarray(u_t, float)
+        x0 = self.initial_state(u.shape[:-1]) if state0 is None else np.asarray(state0, float)
+        f, D = _slider_aft(u, self.stiffness, self.slip_displacement, x0, jacobian)
+        if velocity_jacobian:
+            return f, D, None if D is None else np.zeros_like(D)
+        return f, D
+
+    def backbone(self, a):
+        """Initial-loading force at displacement ``a`` (odd): ``sum_i min(k_i |a|, F_i) sign(a)``."""
+        a = np.asarray(a, float)
+        f = np.minimum(self.stiffness * np.abs(a)[..., None], self.slip_force).sum(axis=-1)
+        return _scalar_out(np.sign(a) * f)
+
+    def dissipation(self, a, omega=None):
+        """Energy per symmetric cycle ``u = +-a``: ``sum_i 4 F_i (|a| - phi_i)`` over slipping elements."""
+        a = np.abs(np.asarray(a, float))[..., None]
+        return _scalar_out((4.0 * self.slip_force * np.maximum(a - self.slip_displacement, 0.0)).sum(axis=-1))
+
+
+@dataclass(frozen=True, eq=False)
+class Jenkins(JointLaw):
+    """One Jenkins element: spring ``kt`` in series with a Coulomb slider of slip force ``Fs``.
+
+    Closed forms (amplitude ``a``, slip displacement ``a_s = Fs / kt``): backbone
+    ``f = kt a`` for ``a <= a_s``, ``Fs`` beyond; dissipation per symmetric cycle
+    ``D = 4 Fs (a - a_s)`` for ``a > a_s``, zero below.
+
+    State: the slider position [m], shape ``(..., 1)``.
+    """
+
+    kt: float
+    Fs: float
+    UNITS: ClassVar[dict] = {"kt": "N/m", "Fs": "N"}
+    masing: ClassVar[bool] = True
+    name: ClassVar[str] = "Jenkins"
+    _elements: DiscreteIwan = field(init=False, repr=False, compare=False, default=None)
+
+    def __post_init__(self):
+        object.__setattr__(self, "kt", _number(self.name, "kt", self.kt, positive=True))
+        object.__setattr__(self, "Fs", _number(self.name, "Fs", self.Fs, positive=True))
+        object.__setattr__(self, "_elements", DiscreteIwan([self.kt], [self.Fs]))
+
+    @property
+    def slip_displacement(self) -> float:
+        return self.Fs / self.kt
+
+    @property
+    def n_state(self) -> int:
+        return 1
+
+    def derived(self) -> dict:
+        return {"slip_displacement": self.slip_displacement}
+
+    def force(self, u, state, v=None):
+        return self._elements.force(u, state, v)
+
+    def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
+        """As :meth:`DiscreteIwan.aft` with one element."""
+        return self._elements.aft(u_t, v_t, velocity_jacobian=velocity_jacobian, jacobian=jacobian, state0=state0)
+
+    def backbone(self, a):
+        a = np.asarray(a, float)
+        return _scalar_out(np.sign(a) * np.minimum(self.kt * np.abs(a), self.Fs))
+
+    def dissipation(self, a, omega=None):
+        a = np.abs(np.asarray(a, float))
+        return _scalar_out(4.0 * self.Fs * np.maximum(a - self.slip_displacement, 0.0))
