@@ -153,17 +153,22 @@ def test_report_html_of_an_earlier_count_does_not_stay_beside_new_statistics(don
     assert _final_consistent(out)[0] == 3
 
 
-def test_a_failed_start_leaves_no_folder(tmp_path, monkeypatch):
+@pytest.mark.parametrize("failure", ["unreachable", "interrupted"])
+def test_a_failed_start_leaves_no_folder(tmp_path, monkeypatch, failure):
     import jointid.app.parallel as parallel
     from jointid.errors import SchedulerError
 
-    def unreachable(*a, **k):
+    def start(*a, **k):
+        if failure == "interrupted":
+            raise KeyboardInterrupt
         raise SchedulerError("cannot reach the dask scheduler at 'tcp://127.0.0.1:9'")
 
-    monkeypatch.setattr(parallel, "map_tasks", unreachable)
-    with pytest.raises(SchedulerError):
+    monkeypatch.setattr(parallel, "map_tasks", start)
+    with pytest.raises(SchedulerError if failure == "unreachable" else study_mod.StudyInterrupted) as info:
         run_study(small_plan(campaigns=2), tmp_path / "out", scheduler="tcp://127.0.0.1:9")
     assert not (tmp_path / "out").exists()
+    if failure == "interrupted":
+        assert str(info.value) == "no campaign was run and nothing was written"
 
 
 def _scratch(folder):

@@ -994,20 +994,20 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
 
             new = map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
                             progress=progress, desc="campaigns", on_result=append, on_lost=lost)
-    except ClusterLostError as exc:
-        head = str(exc).split(" after ")[0]
-        raise ClusterLostError(f"{head}; {saved()} and {_final_state(out)}; run the same command again to resume",
-                               exc.done, exc.total) from None
-    except KeyboardInterrupt:
-        raise StudyInterrupted(f"{saved()} and {_final_state(out)}; run the same command again to resume") from None
-    except BaseException:
-        if len(done) == n_before == 0:  # nothing run: leave no trace of this run
-            for p in reversed(created):
-                if p.is_dir():
-                    with contextlib.suppress(OSError):
-                        p.rmdir()
-                elif p.exists():
-                    p.unlink()
+    except BaseException as exc:
+        cleaned = bool(len(done) == n_before == 0 and created)  # nothing run in a new folder: leave no trace of it
+        for p in reversed(created if cleaned else []):
+            if p.is_dir():
+                with contextlib.suppress(OSError):
+                    p.rmdir()
+            elif p.exists():
+                p.unlink()
+        state = ("no campaign was run and nothing was written" if cleaned
+                 else f"{saved()} and {_final_state(out)}; run the same command again to resume")
+        if isinstance(exc, ClusterLostError):
+            raise ClusterLostError(f"{str(exc).split(' after ')[0]}; {state}", exc.done, exc.total) from None
+        if isinstance(exc, KeyboardInterrupt):
+            raise StudyInterrupted(state) from None
         raise
     finally:
         remove_stale_scratch()  # scratch folders of workers killed in this run (a local cluster's are gone now)
