@@ -62,6 +62,13 @@ def test_given_delay_that_turns_damping_negative_is_flagged(camp, gain):
     assert res.summary()["flagged"]
 
 
+def test_given_delay_is_checked_by_input_power_when_the_terms_have_no_viscous_term(camp):
+    res = _identify(camp, channel_delay=0.001, terms="q - q^3 + |q'|q'")
+    neg = [r for r in res.records if any(f.name == "negative_damping" for f in r.flags)]
+    assert neg and all(f.values["input_power"] < 0 for r in neg for f in r.flags if f.name == "negative_damping")
+    assert all(any(f.name == "channel_delay_implausible" for f in r.flags) for r in res.records if r.ok)
+
+
 @pytest.mark.parametrize("delay", ["-0.037", "1e9", "nan"])
 def test_given_delay_longer_than_a_fraction_of_the_period_is_refused(camp, tmp_path, capsys, delay):
     code, _, err = _run(["identify", camp, "--out", tmp_path / "r", "--channel-delay", delay, "--quiet",

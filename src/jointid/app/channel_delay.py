@@ -164,6 +164,28 @@ DELAY_IMPLAUSIBLE = "channel_delay_implausible"
 _SIGN_FLAGS = (DELAY_FLAG, "channel_swap")
 
 
+def _negative_damping(o, delay):
+    """``negative_damping`` flag of a corrected record, or None: its damping coefficient ``c`` negative
+    beyond ``Z_LIMIT`` standard errors, or (terms without ``q'``) its mean input power ``<Q q'>``."""
+    c = getattr(o.fit, "c", None)
+    where_ = f"after the channel-delay correction of {1e3 * delay.delay_s:.4g} ms ({delay.source})"
+    if c is not None:
+        se = o.fit.c_stderr
+        if se is None or not np.isfinite(c) or not (c < 0 and -c > Z_LIMIT * max(se, 0.0)):
+            return None
+        return Flag(NEGATIVE_DAMPING, f"damping c = {c:.4g} ± {se:.2g} {where_}: negative, and a passive joint "
+                                      "dissipates", {"c": c, "c_stderr": se, "delay_s": delay.delay_s})
+    from ..signal.checks import record_flags
+
+    sign = [f for f in record_flags(o.signals) if f.name in _SIGN_FLAGS]
+    if not sign:
+        return None
+    p, se = sign[0].values.get("input_power"), sign[0].values.get("input_power_stderr")
+    return Flag(NEGATIVE_DAMPING, f"mean input power <Q q'> = {p:.4g} ± {se:.2g} {where_}: negative, and a passive "
+                                  "joint dissipates", {"input_power": p, "input_power_stderr": se,
+                                                       "delay_s": delay.delay_s})
+
+
 def _passive_flags(before, after, delay):
     """Flag records whose corrected damping is negative beyond its noise (a passive joint dissipates).
 
@@ -174,13 +196,9 @@ def _passive_flags(before, after, delay):
     after = list(after)
     caused = 0
     for i, (old, o) in enumerate(zip(before, after)):
-        c = getattr(getattr(o, "fit", None), "c", None) if o.ok else None
-        se = getattr(o.fit, "c_stderr", None) if c is not None else None
-        if c is None or se is None or not np.isfinite(c) or not (c < 0 and -c > Z_LIMIT * max(se, 0.0)):
+        f = _negative_damping(o, delay) if o.ok else None
+        if f is None:
             continue
-        f = Flag(NEGATIVE_DAMPING, f"damping c = {c:.4g} ± {se:.2g} after the channel-delay correction of "
-                                   f"{1e3 * delay.delay_s:.4g} ms ({delay.source}): negative, and a passive joint "
-                                   "dissipates", {"c": c, "c_stderr": se, "delay_s": delay.delay_s})
         after[i] = replace(o, flags=tuple(o.flags) + (f,))
         if not any(g.name in _SIGN_FLAGS for g in getattr(old, "flags", ())):
             caused += 1
