@@ -145,3 +145,20 @@ def test_a_task_that_kills_its_workers_is_reported_not_fatal(cluster):
             map_tasks(os._exit, [(3,)], client=client)
         client.wait_for_workers(2, timeout=60)
     assert out[0][:2] == ("lost", 0) and "KilledWorker" in out[0][2]
+
+
+def test_cleanup_runs_on_the_workers_after_the_tasks(cluster, tmp_path):
+    """map_tasks(cleanup=...) runs on every worker at the end: the study removes there the scratch
+    folders of workers killed during the run."""
+    import functools
+
+    from jointid.app.study import remove_stale_scratch
+
+    dead = int(subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                              text=True).stdout)
+    (tmp_path / f"jointid-study-{dead}-abc").mkdir()
+    with distributed.Client(cluster) as client:
+        out = map_tasks(divmod, [(7, 2), (9, 4)], client=client,
+                        cleanup=functools.partial(remove_stale_scratch, str(tmp_path)))
+    assert out == [(3, 1), (2, 1)]
+    assert not list(tmp_path.iterdir())

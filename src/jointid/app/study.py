@@ -993,7 +993,8 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
                         "rows": []}
 
             new = map_tasks(run_campaign, [(plan, i) for i in todo], jobs=jobs, scheduler=scheduler, client=client,
-                            progress=progress, desc="campaigns", on_result=append, on_lost=lost)
+                            progress=progress, desc="campaigns", on_result=append, on_lost=lost,
+                            cleanup=remove_stale_scratch)
     except BaseException as exc:
         cleaned = bool(len(done) == n_before == 0 and created)  # nothing run in a new folder: leave no trace of it
         for p in reversed(created if cleaned else []):
@@ -1010,7 +1011,7 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
             raise StudyInterrupted(state) from None
         raise
     finally:
-        remove_stale_scratch()  # scratch folders of workers killed in this run (a local cluster's are gone now)
+        remove_stale_scratch()  # scratch folders of workers killed in this run (also run on each worker at the end)
     lines = [done[i] for i in sorted(done)]
     atomic_write(path, "".join(json.dumps(line, allow_nan=False) + "\n" for line in lines))
     lost_lines = {line["index"]: line for line in new if line["index"] not in done}
