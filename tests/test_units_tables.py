@@ -106,12 +106,13 @@ def check_header(header, gain_free, where):
     if re.search(r"(^|\s)(f1|f|peak f|frequency|folds)(\s|$)", name) and not header.startswith("F "):
         assert unit == "Hz", f"{where}: {header!r} is a frequency: Hz"
     if re.search(r"\bk3\b(?!/k)", name) and "joint" not in name and "raw" not in name:
-        if gain_free:
+        if gain_free or "k3/m" in name:  # a ratio to the inertia coefficient m = 1/g: per unit modal mass
             assert "k3/m" in name and unit == "1/(m² s²)", f"{where}: {header!r} must be k3/m [1/(m² s²)]"
         else:
             assert unit == "N/m³", f"{where}: {header!r}"
     if re.fullmatch(r"c\d?(/m)?( pooled)?", name):
-        assert (unit.startswith("1/") if gain_free else unit.startswith("N s/m")), f"{where}: {header!r}"
+        assert "/m" in name or not gain_free, f"{where}: {header!r} must be a ratio c/m in a gain-free run"
+        assert (unit.startswith("1/") if "/m" in name else unit.startswith("N s/m")), f"{where}: {header!r}"
 
 
 #: Unit of a quantity named in a table with a ``unit`` column (None: anything but empty).
