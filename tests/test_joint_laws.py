@@ -333,3 +333,15 @@ def test_bad_parameters_are_structure_errors():
     with pytest.raises(StructureError, match="same"):
         DiscreteIwan([1.0, 2.0], [1.0])
     assert math.isfinite(IWAN.replace(beta=0.0).S)
+
+
+def test_the_documented_example_runs(capsys):
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "joint-laws.md").read_text(encoding="utf-8")
+    blocks = [b.split("```", 1)[0] for b in text.split("```python\n")[1:]]
+    assert blocks
+    for block in blocks:
+        exec(compile(block, "docs/joint-laws.md", "exec"), {})
+    ratio = float(capsys.readouterr().out.split()[0])
+    assert ratio == pytest.approx(1.0, abs=2e-3)
