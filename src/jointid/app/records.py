@@ -21,7 +21,8 @@ from ..errors import IdentificationError, JointidError, JointidWarning, where
 from ..identify.fsm import ForceStateMapping, RecordFit
 from ..identify.terms import library
 from ..io.campaign import RecordSpec, read_record
-from ..signal.checks import Flag, check_live, clipping_flag, record_flags, scale_outliers, trend_outliers
+from ..signal.checks import (Flag, check_live, clipping_flag, equivalent_damping, record_flags, scale_outliers,
+                             trend_outliers)
 from ..signal.harmonics import StateSignals, steady_state_signals
 
 __all__ = ["IdentifySettings", "RecordOutcome", "process_record", "process_all", "flag_group_outliers", "Flag"]
@@ -235,9 +236,10 @@ def flag_group_outliers(outcomes) -> list:
 
     Within each (preload, force level) group of identified records: an excitation frequency
     off from the group's median by a factor of 3 or more (``time_unit``: time in ms instead
-    of s), an ``omega1`` off by a factor of 1.5 or more, or a damping coefficient ``c`` off the
-    group's trend of ``c`` against ``q_max`` (3 times below it or 8 times above: a damping
-    law growing faster than a power law lies above the line of a few records) (``scale_outlier``:
+    of s), an ``omega1`` off by a factor of 1.5 or more, or an equivalent viscous damping
+    ``c_eq = <Q q'> / <q'^2>`` off the group's trend of ``c_eq`` against ``q_max`` (3 times below it
+    or 8 times above: a damping law growing faster than a power law lies above the line of a few
+    records) and by more than 6 of its standard errors (``scale_outlier``:
     acceleration in g instead of m/s^2 scales the identified damping by about 9.81 and leaves
     ``omega1`` nearly unchanged near resonance; a wrong channel).  Each limit is also at least 6 robust standard deviations of the group's
     log values, so only a record far outside the group's own spread is flagged.  Outliers of the pooled fits themselves (records
@@ -271,9 +273,9 @@ def flag_group_outliers(outcomes) -> list:
                     outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
         freq = scale_outliers({i: outcomes[i].signals.frequency_hz for i in members}, factor=3.0)
         omega = scale_outliers({i: outcomes[i].fit.omega1 for i in members}, factor=1.5)
-        damping = trend_outliers({i: outcomes[i].fit.q_max for i in members},
-                                 {i: outcomes[i].fit.c for i in members if outcomes[i].fit.c is not None},
-                                 factor=(3.0, 8.0))
+        ceq = {i: _equivalent_damping(outcomes[i]) for i in members}
+        damping = trend_outliers({i: outcomes[i].fit.q_max for i in members}, {i: v[0] for i, v in ceq.items()},
+                                 factor=(3.0, 8.0), stderr={i: v[1] for i, v in ceq.items()})
         for i, (ratio, median) in freq.items():
             f = Flag("time_unit", f"excitation frequency {outcomes[i].signals.frequency_hz:.6g} Hz is {ratio:.4g} "
                                   f"times the group's median {median:.6g} Hz; time in ms instead of s?",
@@ -286,11 +288,24 @@ def flag_group_outliers(outcomes) -> list:
                      {"omega1": outcomes[i].fit.omega1, "group_median_omega1": median, "ratio": ratio})
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
         for i, (ratio, median) in damping.items():
-            f = Flag("scale_outlier", f"damping c = {outcomes[i].fit.c:.6g} is {ratio:.4g} times the group's trend of c "
-                                      f"against q_max ({median:.6g} there); acceleration in g instead of m/s^2 or a mis-scaled channel?",
-                     {"c": outcomes[i].fit.c, "group_trend_c": median, "ratio": ratio})
+            c, se = ceq[i]
+            f = Flag("scale_outlier", f"equivalent viscous damping c_eq = {c:.6g} (± {se:.2g}) is {ratio:.4g} times the "
+                                      f"group's trend of c_eq against q_max ({median:.6g} there); acceleration in g "
+                                      f"instead of m/s^2 or a mis-scaled channel?",
+                     {"c": outcomes[i].fit.c, "c_equivalent": c, "c_equivalent_stderr": se, "group_trend_c": median,
+                      "ratio": ratio})
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
     return outcomes
+
+
+def _equivalent_damping(outcome):
+    """``(c_eq, stderr)`` of an identified record (:func:`~jointid.signal.checks.equivalent_damping`)."""
+    sc = outcome.fit.scores
+    if sc is None or sc.force_coefficients is None:
+        return None, None
+    s = outcome.signals
+    return equivalent_damping(sc.force_coefficients, s.velocity.coefficients, s.omega, sc.sigma_force, sc.sigma_accel,
+                              sc.n_samples)
 
 
 def _group_id(key):

@@ -44,9 +44,10 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import linalg
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning, RecordError
@@ -59,9 +60,9 @@ from ..signal.harmonics import (
 )
 from .broadband import delta_method
 from .fsm import COND_LIMIT, pooled_inputs, split_terms
-from .regression import pooled_lstsq
+from .regression import lstsq_from_reduced
 from .terms import library
-from .uncertainty import ci95, record_pass, sandwich
+from .uncertainty import ci95, record_pass, sandwich, scaled_inverse
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
 
@@ -404,15 +405,31 @@ class PooledGainForceStateMapping:
         nt = len(lib) + 1
         passes = [record_pass(lib, s, inertia=True) for s in sigs]
         Rs = [R for R, _ in passes]
-        reduced = [(R, s.t.size) for R, s in zip(Rs, sigs)]
-        res, weights = pooled_lstsq(reduced, shared_cols, own_cols, nt, weighting=self.weighting)
-        cov = _sandwich_covariance(lib, [sc for _, sc in passes], Rs, res.coefficients, weights, shared_cols, own_cols)
+        weights = np.array([_record_weight(R, s.t.size, shared_cols + own_cols, nt) if self.weighting == "noise"
+                            else 1.0 for R, s in zip(Rs, sigs)])
+        alpha_covs = [alpha_covariance(s, sc) for s, (_, sc) in zip(sigs, passes)]
+        grams = [R.T @ R for R in Rs]
+        eiv = [eiv_gram(lib, s, C) for s, C in zip(sigs, alpha_covs)]
+        corrected = []
+        for M, E in zip(grams, eiv):
+            Mc = M.copy()
+            Mc[:nt, :nt] -= E
+            corrected.append(Mc)
+        placement = [_placement(r, nt, shared_cols, own_cols, ns, no) for r in range(nr)]
+        coef, cond, ok = _pooled_normal_solve(corrected, placement, weights, nt, ns + no * nr)
+        if not ok:  # the harmonics carry less than their own noise: plain least squares
+            coef, cond, _ = _pooled_normal_solve(grams, placement, weights, nt, ns + no * nr)
+            corrected = grams
+            warn.append(f"{context}the errors-in-variables correction leaves the pooled normal matrix without "
+                        f"a positive definite part (the fitted harmonics are dominated by their noise); plain "
+                        f"least squares is used and the gain may be biased")
+        cov = _sandwich_covariance(lib, [sc for _, sc in passes], alpha_covs, corrected, coef, weights, placement, sigs)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        n_total = res.n_samples
-        if not np.isfinite(res.condition_number) or res.condition_number > self.cond_limit:
+        n_total = int(sum(s.t.size for s in sigs))
+        if not np.isfinite(cond) or cond > self.cond_limit:
             warn.append(f"{context}pooled regression too ill-conditioned (condition number "
-                        f"{res.condition_number:.3g} > {self.cond_limit:.3g})")
-        shared = res.coefficients[:ns]
+                        f"{cond:.3g} > {self.cond_limit:.3g})")
+        shared = coef[:ns]
         if not shared[0] > 0:
             warn.append(f"{context}the fitted inertia coefficient m = {shared[0]:.4g} is not positive; the gain "
                         f"and the derived frequencies are meaningless")
@@ -431,37 +448,188 @@ class PooledGainForceStateMapping:
             warnings.warn(w_, IllConditionedWarning, stacklevel=3)
         names_shared = ("m",) + tuple(lib[i].coefficient for i in shared_lib)
         self.library_ = lib
-        self.lstsq_ = res
         self.coef_ = shared
         self.result_ = GainFit(
             lib.names, names_shared, shared, se[:ns], tuple(lib[i].coefficient for i in own_lib),
-            res.coefficients[ns:].reshape(nr, no), se[ns:].reshape(nr, no), cov,
+            coef[ns:].reshape(nr, no), se[ns:].reshape(nr, no), cov,
             np.array([s.q_max() for s in sigs]), np.array([s.frequency_hz for s in sigs]), np.array(w1),
-            res.condition_number, np.array(weights), n_total, tuple(warn),
+            cond, weights, n_total, tuple(warn),
         )
         return self
 
 
 
-def _sandwich_covariance(lib, scores, Rs, coef, weights, shared_cols, own_cols):
+def _record_weight(R, n, cols, rhs) -> float:
+    """Inverse residual standard deviation of the record's own fit on ``cols`` (``weighting="noise"``)."""
+    single = lstsq_from_reduced(R[:, cols], R[:, rhs], n)
+    floor = 1e-13 * float(np.abs(R[:, rhs]).max()) / np.sqrt(n)
+    return 1.0 / max(single.sigma, floor, np.finfo(float).tiny)
+
+
+def _placement(r, nt, shared_cols, own_cols, ns, no) -> np.ndarray:
+    """Position of record ``r``'s columns ``[q'', terms...]`` in the pooled coefficient vector."""
+    cols = np.full(nt, -1)
+    cols[shared_cols] = np.arange(ns)
+    cols[own_cols] = ns + r * no + np.arange(no)
+    return cols
+
+
+def _pooled_normal_solve(grams, placement, weights, nt, P):
+    """Solve the pooled normal equations ``sum_r w_r^2 M_r`` placed in the pooled columns.
+
+    Returns ``(coefficients, condition number of the column-scaled design, positive definite)``.
+    The condition number is the square root of the scaled normal matrix's (that of the
+    stacked, scaled regression matrix).
+    """
+    A, b = np.zeros((P, P)), np.zeros(P)
+    for M, cols, w in zip(grams, placement, weights):
+        A[np.ix_(cols, cols)] += w**2 * M[:nt, :nt]
+        b[cols] += w**2 * M[:nt, nt]
+    d = np.sqrt(np.abs(np.diag(A)))
+    d[d == 0] = 1.0
+    As = 0.5 * (A + A.T) / np.outer(d, d)
+    ev = np.linalg.eigvalsh(As)
+    if not np.all(np.isfinite(ev)) or ev[0] <= 1e-14 * ev[-1]:
+        return np.full(P, np.nan), float("inf"), False
+    coef = linalg.solve(As, b / d, assume_a="pos") / d
+    return coef, float(np.sqrt(ev[-1] / ev[0])), True
+
+
+def alpha_covariance(signals, scores) -> np.ndarray:
+    """Covariance ``sigma^2 G^-1`` of the fitted acceleration coefficients under white noise
+    (``G`` the fit's basis Gram, ``sigma^2`` the residual variance outside the fitted harmonics,
+    as in :class:`~jointid.identify.uncertainty.RecordScores`).
+
+    For a dwell whose velocity or displacement was measured (:func:`sine_dwell_signals`) the
+    residual is that of the measured response and is used as it is, like the noise model of
+    :mod:`jointid.identify.uncertainty` does.
+    """
+    C = float(scores.sigma_accel) ** 2 * scaled_inverse(scores.basis_gram)
+    return 0.5 * (C + C.T)
+
+
+def _error_rows(lib, signals, L):
+    """Blocks of ``g_j(t)^T L`` (``(rows, 1 + n_terms, rank)``): how each column ``[q''_fit, terms...]``
+    moves per unit of the whitened error of the acceleration coefficients (``d alpha = L z``)."""
+    p = len(lib) + 1
+    Tv = np.column_stack([HarmonicSeries(signals.omega, e).integral().coefficients for e in np.eye(L.shape[0])])
+    LTq, LTv = Tv @ Tv @ L, Tv @ L  # B Tq L: the displacement per unit z
+    for (sl, q, v, _), (_, A) in zip(signals.blocks(), signals.basis_blocks()):
+        Uq, Uv = A @ LTq, A @ LTv
+        Gm = np.empty((q.size, p, L.shape[1]))
+        Gm[:, 0] = A @ L
+        for k, t in enumerate(lib):
+            gq, gv = t.derivative_values(q, v)
+            Gm[:, 1 + k] = Uq * (np.reshape(gq, (-1, 1)) if np.ndim(gq) else gq)
+            Gm[:, 1 + k] += Uv * (np.reshape(gv, (-1, 1)) if np.ndim(gv) else gv)
+        yield Gm
+
+
+def _whitener(alpha_cov) -> np.ndarray:
+    """``L`` with ``L L^T = alpha_cov`` (positive semi-definite)."""
+    w, V = np.linalg.eigh(0.5 * (alpha_cov + alpha_cov.T))
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def eiv_gram(lib, signals, alpha_cov) -> np.ndarray:
+    """Expected Gram of the regressors' errors, ``E[dX^T dX]``, of the columns ``[q''_fit, terms...]``.
+
+    The regressors are built from the fitted acceleration coefficients ``alpha``, whose
+    error ``d alpha`` (covariance ``alpha_cov``) moves every column at once:
+    ``dx_j(t) = g_j(t)^T d alpha`` with ``g = B^T`` for the filtered acceleration and
+    ``g = phi_q T_q^T B^T + phi_v T_v^T B^T`` for a term ``phi(q, q')`` (``T_q``, ``T_v`` the
+    analytic integrations).  Hence ``E[dX^T dX]_jk = sum_t g_j(t)^T C g_k(t)``, summed here
+    block by block.
+
+    Least squares on noisy regressors solves ``(X^T X) theta = X^T V`` with ``E[X^T X]`` larger
+    than the noise-free Gram by this matrix (errors in variables).  It is negligible for the
+    fundamental, but the inertia and the stiffness separate within a record only through the
+    higher harmonics, which are small and carry the same noise: subtracting it from each
+    record's Gram (corrected least squares) removes the bias of the gain.  The remaining
+    second-order terms (the curvature of nonlinear terms) are of the relative size of the
+    noise variance to the fundamental and are left out.
+    """
+    p = len(lib) + 1
+    out = np.zeros((p, p))
+    for Gm in _error_rows(lib, signals, _whitener(alpha_cov)):
+        out += np.tensordot(Gm, Gm, axes=([0, 2], [0, 2]))
+    return 0.5 * (out + out.T)
+
+
+def eiv_score_covariance(lib, signals, alpha_cov, theta) -> np.ndarray:
+    """Second-order part of the score covariance that the plug-in noise model leaves out.
+
+    The corrected score of a record is ``X^T eps - X^T dX theta + dX^T eps - (dX^T dX - E) theta``
+    (``E`` = :func:`eiv_gram`).  Its first-order part has the covariance of the noise model
+    evaluated on the measured regressors, and that plug-in value is itself raised by the
+    regressors' errors: by ``sigma_V^2 E`` and by ``tr(A_j A_k^T)``, where
+    ``A_j = sum_t L^T g_j(t) g_theta(t)^T L`` makes ``(dX^T dX theta)_j = z^T A_j z`` a quadratic
+    form of the whitened coefficient error ``z`` (``d alpha = L z``, see :func:`eiv_gram`).  The
+    second-order terms add ``sigma_V^2 E`` (``dX^T eps``) and
+    ``cov(z^T A_j z, z^T A_k z) = tr(A_j A_k) + tr(A_j A_k^T)`` (Gaussian ``z``).  What remains to
+    add to the plug-in covariance is ``tr(A_j A_k)``, returned here.  Where the harmonics that
+    separate the inertia from the stiffness are of the size of their noise it is of the size
+    of the first-order term in that direction.
+    """
+    p = len(lib) + 1
+    theta = np.asarray(theta, float)
+    L = _whitener(alpha_cov)
+    A = np.zeros((p, L.shape[1], L.shape[1]))
+    for Gm in _error_rows(lib, signals, L):
+        A += np.einsum("tji,tk->jik", Gm, np.einsum("tjr,j->tr", Gm, theta))
+    out = np.einsum("jab,kba->jk", A, A)
+    return 0.5 * (out + out.T)
+
+
+def frequency_score(lib, signals, scores, theta) -> np.ndarray | None:
+    """``d(score)/d omega`` of a record whose excitation frequency was estimated (``None`` if given).
+
+    The score ``X^T (V - X theta)`` at fixed ``theta`` is evaluated with the acceleration
+    fitted at ``omega +- h`` (same time origin) and differenced.  A wrong frequency moves
+    ``q = -q''/omega^2`` against the inertia column, i.e. each record's apparent stiffness
+    ``theta_q - m omega_r^2``; across the records of a group that is an error of the gain,
+    so the frequency estimate's own variance (:attr:`RecordScores.omega_variance`) enters
+    the covariance as ``var(omega) s s^T``.
+    """
+    if signals.frequency_given or not scores.omega_variance > 0:
+        return None
+    omega = signals.omega
+    h = max(1e-7 * omega, 0.1 * float(np.sqrt(scores.omega_variance)))
+    nt = len(lib) + 1
+    acc = signals.acceleration
+    f = []
+    for w in (omega + h, omega - h):
+        series, _ = fit_harmonics(signals.t, signals.accel_measured, w, acc.n_harmonics, t0=acc.t0)
+        shifted = replace(signals, acceleration=series, frequency_hz=w / (2 * np.pi), frequency_given=True)
+        R, _ = record_pass(lib, shifted, inertia=True)
+        M = R.T @ R
+        f.append(M[:nt, nt] - M[:nt, :nt] @ theta)
+    return (f[0] - f[1]) / (2 * h)
+
+
+def _sandwich_covariance(lib, scores, alpha_covs, grams, coef, weights, placement, signals=None):
     """Covariance of the pooled gain fit under the noise model of :mod:`jointid.identify.uncertainty`.
 
-    The excitation noise enters ``V`` directly; the acceleration noise enters through the
-    harmonic fit, which moves the inertia column ``q''_fit`` and the states ``q, q'`` together.
+    The excitation noise enters ``V`` directly; the response noise enters through the
+    harmonic fit, which moves the inertia column ``q''_fit`` and the states ``q, q'`` together
+    (covariance of the acceleration coefficients from :func:`alpha_covariance`).  The bread is
+    the corrected normal matrix the coefficients solve.  With the records' ``signals`` the meat
+    also has the second-order term of the corrected score (:func:`eiv_score_covariance`) and,
+    where the frequency was estimated, the error of that estimate (:func:`frequency_score`).
     """
-    ns, no, nr = len(shared_cols), len(own_cols), len(scores)
-    P = ns + no * nr
+    P = coef.size
     nt = len(lib) + 1
     A, meat = np.zeros((P, P)), np.zeros((P, P))
-    for r, (sc, R, w) in enumerate(zip(scores, Rs, weights)):
-        cols = np.full(nt, -1)
-        cols[shared_cols] = np.arange(ns)
-        cols[own_cols] = ns + r * no + np.arange(no)
+    for sc, C, M, w, cols, sig in zip(scores, alpha_covs, grams, weights, placement, signals or [None] * len(scores)):
         theta = coef[cols]
-        M = R[:, :nt].T @ R[:, :nt]
-        V = sc.covariance(theta)
-        used = cols >= 0
-        idx = np.ix_(cols[used], cols[used])
-        A[idx] += w**2 * M[np.ix_(used, used)]
-        meat[idx] += w**4 * V[np.ix_(used, used)]
+        S = sc.score_terms(theta)
+        V = sc.sigma_force**2 * sc.gram + S @ C @ S.T
+        if sig is not None:
+            V = V + eiv_score_covariance(lib, sig, C, theta)  # second order in the regressors' error
+            u = frequency_score(lib, sig, sc, theta)
+            if u is not None:  # the frequency estimate's own error
+                V = V + sc.omega_variance * np.outer(u, u)
+        idx = np.ix_(cols, cols)
+        A[idx] += w**2 * M[:nt, :nt]
+        meat[idx] += w**4 * 0.5 * (V + V.T)
     return sandwich(A, meat)

@@ -32,9 +32,15 @@ Record checks (:func:`record_flags`):
     joint dissipates): a flipped sign, a timing offset, or swapped channels (named
     ``channel_swap`` when the force is also the more distorted of the two channels).
 
-Group checks (:func:`scale_outliers`): a record whose excitation frequency or identified
-``omega1`` is off from its group's median by a large factor (time in ms instead of s,
-acceleration in g instead of m/s^2).
+Group checks (:func:`scale_outliers`, :func:`trend_outliers`): a record whose excitation
+frequency or identified ``omega1`` is off from its group's median by a large factor (time in
+ms instead of s, acceleration in g instead of m/s^2), or whose damping is off the group's
+trend against the amplitude.  The damping compared is the record's equivalent viscous
+damping ``c_eq = <Q q'> / <q'^2>`` (:func:`equivalent_damping`): the dissipation per cycle,
+which the record resolves whatever damping terms the model has (the coefficient of ``q'``
+alone is not resolved when ``|q'|q'`` or ``q'^3`` are fitted beside it), with its standard
+error.  A unit error scales ``c_eq`` by 9.81 or 1000; a record is flagged only when its
+``c_eq`` is off the trend by the factor *and* by many of its standard errors.
 """
 
 from __future__ import annotations
@@ -47,7 +53,8 @@ import numpy as np
 from ..errors import RecordError
 from .harmonics import fit_harmonics
 
-__all__ = ["Flag", "check_live", "clipping_flag", "record_flags", "scale_outliers", "trend_outliers", "Z_LIMIT"]
+__all__ = ["Flag", "check_live", "clipping_flag", "record_flags", "scale_outliers", "trend_outliers",
+           "equivalent_damping", "Z_LIMIT"]
 
 #: Noise z-score above which a statistic is called significant (white noise: P(|z| > 6) < 1e-8).
 Z_LIMIT = 6.0
@@ -287,6 +294,54 @@ def _distortion(coefficients) -> float:
     return float(np.sqrt(np.sum(amp[1:] ** 2)) / max(amp[0], 1e-300))
 
 
+def equivalent_damping(force_coefficients, velocity_coefficients, omega, sigma_force, sigma_accel, n_samples):
+    """Equivalent viscous damping ``c_eq = <Q q'> / <q'^2>`` of a steady-state record and its standard error.
+
+    Over a period the inertia and every conservative force do no work, so the mean input
+    power ``<Q q'>`` is the power the joint dissipates, and ``c_eq`` is the viscous damping
+    that dissipates as much at the record's velocity.  It needs no model: the same number
+    whatever damping terms (``q'``, ``|q'|q'``, ``q'^3``) share the dissipation in a fit.  A
+    force or acceleration in the wrong unit scales it by the unit's factor.
+
+    Parameters
+    ----------
+    force_coefficients, velocity_coefficients : array
+        Harmonic coefficients ``[a0, a1, b1, a2, b2, ...]`` of the force and the velocity on
+        the same basis.
+    omega : float
+        Excitation frequency [rad/s].
+    sigma_force, sigma_accel : float
+        White-noise standard deviations of the force and the acceleration.
+    n_samples : int
+
+    Returns
+    -------
+    (c_eq, stderr) : (float, float)
+        First-order standard error from the noise of the harmonic coefficients (each cos/sin
+        coefficient has variance ``2 sigma^2 / n``; a velocity coefficient of harmonic ``k`` is
+        an acceleration coefficient divided by ``k omega``).
+
+    Examples
+    --------
+    >>> w = 10.0
+    >>> c, se = equivalent_damping([0, 3.0, 0.5], [0, 0.0, 0.1], w, 0.0, 0.0, 1000)
+    >>> round(c, 12), se
+    (5.0, 0.0)
+    """
+    F = np.asarray(force_coefficients, float)[1:]
+    V = np.asarray(velocity_coefficients, float)[1:]
+    m = min(F.size, V.size)
+    F, V = F[:m], V[:m]
+    vv = float(V @ V)
+    if not vv > 0:
+        return float("nan"), float("nan")
+    c = float(F @ V) / vv
+    k = np.repeat(np.arange(1, m // 2 + 1), 2)[:m]
+    var = 2.0 * float(sigma_force) ** 2 / (n_samples * vv)
+    var += float(np.sum((F - 2.0 * c * V) ** 2 * 2.0 * float(sigma_accel) ** 2 / (n_samples * (k * omega) ** 2))) / vv**2
+    return c, float(np.sqrt(var))
+
+
 def scale_outliers(values, *, factor: float, min_records: int = 3) -> dict:
     """Members of a group whose value is off from the group's median by a large factor.
 
@@ -330,7 +385,7 @@ def _theil_sen(lx, ly):
     return slope, float(np.median(ly - slope * lx))
 
 
-def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60) -> dict:
+def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60, stderr=None) -> dict:
     """Members of a group far off the group's power-law trend ``y ~ x^p``.
 
     A straight line through ``(log x, log y)`` of the other members is fitted robustly
@@ -349,6 +404,11 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60)
         Smallest ratio to the trend that is flagged, or ``(below, above)``: the factors for
         values below and above the trend (a damping law that grows faster than a power law
         puts its largest-amplitude record above the line of the others).
+    stderr : mapping key -> float, optional
+        Standard error of each ``y``: a member is then flagged only when it is also more than
+        ``Z_LIMIT`` of its standard errors off the trend (a value the record does not
+        resolve is no outlier), and members whose ``y`` is not resolved to better than a
+        factor of 2 (``stderr > y / 2``) do not enter the trend of the others.
 
     Returns
     -------
@@ -363,6 +423,15 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60)
     [3]
     """
     keys = [k for k in y if k in x and all(v is not None and np.isfinite(v) and v > 0 for v in (x[k], y[k]))]
+    se = {k: float(stderr[k]) if stderr is not None and stderr.get(k) is not None and np.isfinite(stderr[k]) else 0.0
+          for k in keys}
+    if stderr is not None:  # the trend from the values the records resolve
+        resolved = [k for k in keys if se[k] <= 0.5 * y[k]]
+        out = {}
+        if len(resolved) >= min_records:
+            out = trend_outliers(x, {k: y[k] for k in resolved}, factor=factor, min_records=min_records,
+                                 max_pairs_n=max_pairs_n)
+        return {k: v for k, v in out.items() if abs(y[k] - v[1]) > Z_LIMIT * se[k]}
     n = len(keys)
     if n < min_records:
         return {}
