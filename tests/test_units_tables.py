@@ -318,7 +318,7 @@ def test_modal_console_carries_units(tmp_path, capsys):
     main(["modal", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")])
     text = capsys.readouterr().out
     assert re.search(r"FE frequencies \[Hz\]: 26\.4", text), text
-    assert re.search(r"at x = 0\.42 m", text)
+    assert re.search(r"at x = 0\.42 m: phi = [\d.]+ 1/√kg", text), text
 
 
 @pytest.mark.slow

@@ -69,6 +69,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import JointidWarning, RecordError, StructureError, unknown_key_message
+from ..rounding import format_value
 from .analysis import ModalModel, modal_analysis
 from .beam import SEED_GEOMETRY, BeamSection, JointedBeam, seed_bolted_beam
 from .coordinates import ModalAcceleration, modal_acceleration, sensor_shapes
@@ -522,13 +523,13 @@ class Structure:
     def report(self) -> str:
         lines = [f"Structure from {self.source}: {self.n_basis} basis mode(s), force column {self.force_column!r}"]
         xf = "" if self.force_position is None else f" at x = {self.force_position} m"
-        lines.append(f"  force{xf}: phi = {', '.join(f'{v:.5g}' for v in self.phi_force)}")
+        lines.append(f"  force{xf}: phi = {', '.join(format_value(v, 5) for v in self.phi_force)} 1/√kg")
         for n, row in zip(self.sensors, self.phi_sensors):
             x = self.sensors[n]
             where_ = "" if x is None else f" at x = {x} m"
-            lines.append(f"  {n}{where_}: phi = {', '.join(f'{v:.5g}' for v in row)}")
+            lines.append(f"  {n}{where_}: phi = {', '.join(format_value(v, 5) for v in row)} 1/√kg")
         if self.modes is not None:
-            lines.append("  FE frequencies [Hz]: " + ", ".join(f"{f:.3f}" for f in self.modes.frequencies_hz))
+            lines.append("  FE frequencies [Hz]: " + ", ".join(format_value(f, 6) for f in self.modes.frequencies_hz))
         if self.update is not None:
             lines.append(self.update.report())
         return "\n".join(lines)
