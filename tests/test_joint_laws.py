@@ -345,3 +345,34 @@ def test_the_documented_example_runs(capsys):
         exec(compile(block, "docs/joint-laws.md", "exec"), {})
     ratio = float(capsys.readouterr().out.split()[0])
     assert ratio == pytest.approx(1.0, abs=2e-3)
+
+
+# --- the rig's own Iwan joint (rig/iwan.py) is the same law -----------------------------------------------
+def test_iwan4_agrees_with_the_rig_joint_law():
+    from jointid.rig.iwan import IwanParameters, discretize_iwan
+
+    rig = IwanParameters(F_S=2.0, K_T=2000.0, chi=-0.5, beta=0.3)
+    law = Iwan4(F_S=2.0, K_T=2000.0, chi=-0.5, beta=0.3, n_sliders=100, phi_min_ratio=1e-5)
+    a = law.phi_max * np.array([0.01, 0.5, 0.99, 2.0])
+    assert (law.phi_max, law.R, law.S) == pytest.approx((rig.phi_max, rig.R, rig.S), rel=1e-14)
+    assert np.allclose(law.backbone(a), rig.backbone(a), rtol=1e-14, atol=0)
+    assert np.allclose(law.dissipation(a), rig.dissipation(a), rtol=1e-14, atol=0)
+    elements = discretize_iwan(rig, 100, 1e-5)
+    assert np.allclose(law.sliders.stiffness, elements.stiffness, rtol=1e-14, atol=0)
+    assert np.allclose(law.sliders.slip_displacement, elements.slip, rtol=1e-14, atol=0)
+    u = law.phi_max * (0.3 + _irregular_motion(0.8, 64, 5))  # with a mean: the stuck elements' convention matters
+    f_rig, _, D_rig = elements.periodic_force(u, jacobian=True)
+    f, D = law.aft(u, state0="centre")
+    assert np.allclose(f, f_rig, rtol=0, atol=1e-12 * law.F_S)
+    assert np.allclose(D, D_rig, rtol=0, atol=1e-12 * law.K_T)
+    f_virgin, _ = law.aft(u)  # from the virgin state the stuck elements carry the mean
+    assert np.max(np.abs(f_virgin - f_rig)) > 1e-3 * law.F_S
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_centre_state_jacobian_equals_finite_differences(seed):
+    u = 2e-3 + _irregular_motion(4e-3, 48, seed)
+    f, D = DISCRETE.aft(u, state0="centre")
+    Dfd = _fd_jacobian(DISCRETE, u, 1e-10, state0="centre")
+    assert np.max(np.abs(D - Dfd)) <= 1e-6 * np.max(np.abs(D))
+    assert not np.allclose(D, DISCRETE.aft(u)[1])

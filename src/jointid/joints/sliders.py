@@ -21,14 +21,15 @@ from ._core import JointLaw, _number, _scalar_out
 __all__ = ["Jenkins", "DiscreteIwan"]
 
 
-def _slider_aft(u, k, phi, x0, jacobian):
+def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     """Periodic force of parallel Jenkins elements over one sampled period (two sweeps).
 
     The first sweep starts from ``x0`` (the state at sample 0 before the period) and ends in
     the periodic state of every element that slipped: once the motion has passed its
     largest and its smallest sample, an element that slipped holds a state independent of
     where it started (Masing).  The second sweep gives the force.  An element that never
-    slips keeps ``x0``.  The Jacobian follows the same sweep: the play operator returns
+    slips keeps ``x0`` (with ``centre=True``, ``x0`` is the centre of the range of ``u`` and
+    depends on it).  The Jacobian follows the same sweep: the play operator returns
     either the old slider position or ``u_j -+ phi``, so ``d x_i(t_j) / d u`` is the unit
     vector of the sample where element ``i`` last slipped (zero if it never did).
     """
@@ -63,6 +64,12 @@ def _slider_aft(u, k, phi, x0, jacobian):
     flat = (bidx * n * n + rows * n + L)[seen]
     D = -np.bincount(flat, weights=w[seen], minlength=nb * n * n).reshape(nb, n, n)
     D[:, np.arange(n), np.arange(n)] += ktot
+    if centre:
+        k_never = (np.where(L[0] < 0, k, 0.0)).sum(axis=-1)  # the same elements at every sample
+        ub = u.reshape(nb, n)
+        imax, imin = np.argmax(ub, axis=-1), np.argmin(ub, axis=-1)
+        D[np.arange(nb), :, imax] -= 0.5 * k_never[:, None]
+        D[np.arange(nb), :, imin] -= 0.5 * k_never[:, None]
     return f, D.reshape(batch + (n, n))
 
 
@@ -156,9 +163,12 @@ class DiscreteIwan(JointLaw):
             Also return ``df_dv`` (zeros).
         jacobian : bool
             ``False``: skip the Jacobians (returned as ``None``), for long periods.
-        state0 : array (..., N), optional
-            Slider positions before the period (default: the virgin state); only elements
-            that never slip over the period keep it.
+        state0 : array (..., N) or "centre", optional
+            Slider positions before the period (default: the virgin state, sliders at 0);
+            only elements that never slip over the period keep it.  ``"centre"``: they sit
+            at the centre of the motion's range (the state a vibration growing from rest
+            about its mean reaches; a stuck element then carries no mean force), and the
+            Jacobian includes that dependence on the largest and smallest samples.
 
         Returns
         -------
@@ -169,8 +179,14 @@ class DiscreteIwan(JointLaw):
             later in the period: the slip history wraps round).
         """
         u = np.asarray(u_t, float)
-        x0 = self.initial_state(u.shape[:-1]) if state0 is None else np.asarray(state0, float)
-        f, D = _slider_aft(u, self.stiffness, self.slip_displacement, x0, jacobian)
+        centre = isinstance(state0, str)
+        if centre and state0 != "centre":
+            raise StructureError(f"{self.name}: state0 must be an array or 'centre', got {state0!r}")
+        if centre:
+            x0 = np.broadcast_to((0.5 * (u.max(axis=-1) + u.min(axis=-1)))[..., None], u.shape[:-1] + (self.n_elements,))
+        else:
+            x0 = self.initial_state(u.shape[:-1]) if state0 is None else np.asarray(state0, float)
+        f, D = _slider_aft(u, self.stiffness, self.slip_displacement, x0, jacobian, centre)
         if velocity_jacobian:
             return f, D, None if D is None else np.zeros_like(D)
         return f, D
