@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -104,13 +105,63 @@ def _lines(path):
     return path.read_text().count("\n") if path.is_file() else 0
 
 
+@contextlib.contextmanager
+def _dask_processes(n_workers=1):
+    """A ``dask scheduler`` and ``dask worker`` processes on the loopback interface; yields the
+    scheduler address and the scheduler's Popen (to kill it); every process is killed at the end."""
+    import os
+
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    procs = []
+    try:
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                       "--port", address.rsplit(":", 1)[1], "--no-dashboard"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                                       "--nworkers", str(n_workers), "--no-dashboard"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        import distributed
+
+        with distributed.Client(address, timeout="60s") as client:  # retries until the scheduler listens
+            client.wait_for_workers(n_workers, timeout=120)
+        yield address, procs[0]
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+
+
+@pytest.mark.slow
+def test_identify_losing_its_scheduler_exits_4_and_leaves_the_earlier_set(campaign, tmp_path):
+    out = tmp_path / "out"
+    assert main(["identify", str(campaign), "--out", str(out), "--quiet", "--no-reprediction"]) == 0
+    before = _consistent(out)
+    with _dask_processes() as (address, scheduler):
+        proc = subprocess.Popen(_command(campaign, out)[:-2] + ["--no-reprediction", "--scheduler", address],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        seen = ""
+        while proc.poll() is None:  # the progress lines: kill the scheduler once records are done
+            line = proc.stderr.readline()
+            seen += line
+            if re.search(r"records: [1-9]\d*/", line):
+                scheduler.kill()
+                break
+        _, rest = proc.communicate(timeout=120)
+    stderr = seen + rest
+    print(f"identify, scheduler killed: exit {proc.returncode}; {stderr.strip().splitlines()[-1]}")
+    assert proc.returncode == 4, stderr
+    assert "Traceback" not in stderr and "ERROR" not in stderr, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("jointid identify: incomplete: the dask cluster was lost") and "run the same command" in last
+    assert _consistent(out) == before
+
+
 @pytest.mark.slow
 def test_study_losing_its_scheduler_says_so_and_keeps_the_last_complete_statistics(tmp_path):
     """A real ``dask scheduler`` process killed mid-study: exit 4 with one line saying how many
     campaigns are saved and that the same command resumes; the final files of the last complete
     run stay; the rerun finishes the study without a lost or duplicated campaign."""
-    import os
-
     from jointid.app.study import run_study
     from jointid.io.campaign import toml_dumps
     from test_study import small_plan
@@ -121,32 +172,19 @@ def test_study_losing_its_scheduler_says_so_and_keeps_the_last_complete_statisti
     before = {n: (out / n).read_bytes() for n in ("study.json", "statistics.csv")}
     plan = tmp_path / "plan.toml"
     plan.write_text(toml_dumps(small_plan(campaigns=8)))
-    address = f"tcp://127.0.0.1:{_free_port()}"
-    procs = []
-    try:
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                                       "--port", address.rsplit(":", 1)[1], "--no-dashboard"],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
-                                       "--nworkers", "1", "--no-dashboard"],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+    with _dask_processes() as (address, scheduler):
         study = subprocess.Popen([sys.executable, "-m", "jointid.cli", "study", str(plan), "--out", str(out),
                                   "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         t0 = time.monotonic()
         while _lines(out / "campaigns.jsonl") < 3 and time.monotonic() - t0 < 180 and study.poll() is None:
             time.sleep(0.05)
         assert study.poll() is None, study.communicate()
-        os.kill(procs[0].pid, signal.SIGKILL)  # the scheduler dies with campaigns still to run
+        scheduler.kill()  # SIGKILL: the scheduler dies with campaigns still to run
         try:
             _, stderr = study.communicate(timeout=120)
         except subprocess.TimeoutExpired:  # pragma: no cover - a hang is a failure
             study.kill()
             pytest.fail("the study did not end within 120 s of losing its scheduler")
-    finally:
-        for p in procs:
-            with contextlib.suppress(ProcessLookupError, PermissionError):
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait(timeout=30)
     saved = _lines(out / "campaigns.jsonl")
     print(f"scheduler killed: exit {study.returncode}, {saved} campaigns saved; stderr: {stderr.strip()[-400:]}")
     assert study.returncode == 4, stderr
