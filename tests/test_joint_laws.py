@@ -136,6 +136,16 @@ def test_jenkins_loop_area_equals_closed_form_dissipation(ratio):
     assert loop_energy(u, f) == pytest.approx(expected, rel=1e-6, abs=1e-12 * JENKINS.Fs * a)
 
 
+@pytest.mark.parametrize("a", [1e-3, 4e-3, 2e-2])
+def test_discrete_iwan_loop_area_equals_closed_form_dissipation(a):
+    u = harmonic_motion(a, 2**14)
+    f, _ = DISCRETE.aft(u, jacobian=False)
+    phi = DISCRETE.slip_displacement
+    expected = sum(4 * F * (a - p) for F, p in zip(DISCRETE.slip_force, phi) if p < a)
+    assert 0 < np.sum(phi < a) and DISCRETE.dissipation(a) == pytest.approx(expected, rel=1e-14)
+    assert loop_energy(u, f) == pytest.approx(expected, rel=1e-6)
+
+
 def test_jenkins_backbone_from_time_stepping():
     u = np.linspace(0, 5 * JENKINS.slip_displacement, 501)
     state = JENKINS.initial_state()
@@ -376,3 +386,20 @@ def test_centre_state_jacobian_equals_finite_differences(seed):
     Dfd = _fd_jacobian(DISCRETE, u, 1e-10, state0="centre")
     assert np.max(np.abs(D - Dfd)) <= 1e-6 * np.max(np.abs(D))
     assert not np.allclose(D, DISCRETE.aft(u)[1])
+
+
+def test_polynomial_terms_agree_with_the_term_library():
+    """The same named terms as identification uses (until both read one table)."""
+    from jointid.conventions import TERMS
+    from jointid.identify.terms import STANDARD_TERMS
+    from jointid.joints import TERM_FUNCTIONS
+
+    assert set(TERM_FUNCTIONS) == set(TERMS) == set(STANDARD_TERMS)
+    rng = np.random.default_rng(7)
+    q, v = rng.normal(size=50), rng.normal(size=50)
+    for name, t in STANDARD_TERMS.items():
+        law = PolynomialLaw({name: 1.7})
+        f, Du, Dv = law.aft(q, v, velocity_jacobian=True)
+        dq, dv = t.derivatives(q, v)
+        assert np.allclose(f, 1.7 * t(q, v), rtol=1e-15, atol=0), name
+        assert np.allclose(np.diag(Du), 1.7 * dq, rtol=1e-15, atol=0) and np.allclose(np.diag(Dv), 1.7 * dv), name
