@@ -51,6 +51,7 @@ from scipy import linalg
 
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning, RecordError
+from ..rounding import format_pm, format_value
 from ..signal.harmonics import (
     HarmonicSeries,
     StateSignals,
@@ -65,6 +66,13 @@ from .terms import library
 from .uncertainty import ci95, record_pass, sandwich, scaled_inverse
 
 __all__ = ["sine_dwell_signals", "GainFit", "PooledGainForceStateMapping"]
+
+#: Units of the coefficients of ``V = m q'' + sum theta_j phi_j(q, q')`` (the excitation in V, q in m).
+_RAW_UNITS = {"m": "V s²/m", "omega1^2": "V/m", "k2": "V/m²", "k3": "V/m³", "k5": "V/m⁵", "k_abs": "V/m²"}
+#: Units of the gain-free ratios (per unit modal mass: ``k3/m`` is the seed's k3 for one kg).
+_DERIVED_UNITS = {"omega1": "rad/s", "f1_hz": "Hz", "gain": "N/V", "k2/m": "1/(m s²)", "k2/k": "1/m",
+                  "k3/m": "1/(m² s²)", "k3/k": "1/m²", "k5/m": "1/(m⁴ s²)", "k5/k": "1/m⁴", "k_abs/m": "1/(m s²)",
+                  "k_abs/k": "1/m"}
 
 _KINDS = {"displacement": 0, "velocity": 1, "acceleration": 2}
 
@@ -315,20 +323,21 @@ class GainFit:
 
     def report(self) -> str:
         lines = [f"pooled stepped-sine fit with unknown force gain: {self.n_records} records, "
-                 f"condition number {self.condition_number:.3g}"]
-        for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr):
-            lines.append(f"  {n:>10} = {v:.8g} ± {s:.2g}   (shared)")
+                 f"condition number {format_value(self.condition_number, 3)}"]
+        for n, v, s in zip(self.shared_names, self.shared, self.shared_stderr):  # V = m q'' + sum theta_j phi_j
+            name = "m" if n == "m" else f"theta({n})"
+            lines.append(f"  {name:>14} = {format_pm(v, s, _RAW_UNITS.get(n, ''))}   (shared)")
         for k, (v, s) in self.derived().items():
-            lines.append(f"  {k:>10} = {v:.6g} ± {s:.2g}")
+            lines.append(f"  {k:>14} = {format_pm(v, s, _DERIVED_UNITS.get(k, ''))}")
         has_c = "c" in self.own_names
         cm = self.per_record("c") if has_c else None
         for r in range(self.n_records):
-            txt = (f"  record {r}: {self.frequency_hz[r]:.5g} Hz, q_max {self.q_max[r]:.4g}, "
-                   f"omega1 alone {self.omega1_per_record[r]:.6g} rad/s")
+            txt = (f"  record {r}: {format_value(self.frequency_hz[r], 6)} Hz, q_max {format_value(self.q_max[r])} m, "
+                   f"omega1 alone {format_value(self.omega1_per_record[r], 7)} rad/s")
             if has_c:
-                txt += f", c/m {cm[0][r]:.4g} ± {cm[1][r]:.2g}"
+                txt += f", c/m {format_pm(cm[0][r], cm[1][r], '1/s')}"
             lines.append(txt)
-        lines.append(f"  spread of the per-record omega1: {100 * self.omega1_spread():.3g} %")
+        lines.append(f"  spread of the per-record omega1: {format_value(100 * self.omega1_spread(), 3)} %")
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
