@@ -255,3 +255,16 @@ def test_sigkill_around_the_final_writes_never_leaves_a_mix(done2, tmp_path, del
           f"marker {read_marker(out)['campaigns']} campaigns")
     res = run_study(small_plan(campaigns=3), out, report=True)
     assert res.n_run == 0 and _final_consistent(out)[0] == 3
+
+
+def test_a_plan_of_fewer_campaigns_than_the_file_gives_statistics_of_its_own(done2, tmp_path):
+    """The results file holds 2 campaigns, the plan asks for 1: the final set describes 1 (and says
+    so), the file keeps both lines, and no final file of the 2-campaign run stays beside it."""
+    out = _copy(done2, tmp_path)
+    res = run_study(small_plan(campaigns=1), out, report=False)
+    assert res.n_run == 0 and len(res.campaigns) == 1
+    assert _final_consistent(out)[0] == 1 and not (out / "report.html").exists()
+    assert (out / "campaigns.jsonl").read_bytes() == (done2 / "campaigns.jsonl").read_bytes()
+    first = json.loads((done2 / "campaigns.jsonl").read_text().splitlines()[0])
+    stats = json.loads((out / "study.json").read_text())["statistics"]
+    assert stats == json.loads(json.dumps(study_mod.study_statistics([first])))  # of campaign 0 alone
