@@ -403,3 +403,10 @@ def test_polynomial_terms_agree_with_the_term_library():
         dq, dv = t.derivatives(q, v)
         assert np.allclose(f, 1.7 * t(q, v), rtol=1e-15, atol=0), name
         assert np.allclose(np.diag(Du), 1.7 * dq, rtol=1e-15, atol=0) and np.allclose(np.diag(Dv), 1.7 * dv), name
+
+
+@pytest.mark.parametrize("law", [BW, JENKINS, IWAN])
+def test_a_constant_motion_keeps_the_state_loaded_from_rest(law):
+    f, D = law.aft(np.full(8, 1.5e-3))
+    assert np.allclose(f, law.backbone(1.5e-3) if not isinstance(law, Iwan4) else law.sliders.backbone(1.5e-3))
+    assert np.all(np.isfinite(D))

@@ -170,19 +170,21 @@ class BoucWen(JointLaw):
 
         The hysteretic force at sample 0 is the fixed point of the period map (Newton on one
         scalar per motion, the map being a contraction); ``d z / d u`` follows by the chain
-        rule along the period and the implicit function theorem at the fixed point.
+        rule along the period and the implicit function theorem at the fixed point.  A
+        constant motion has no unique periodic state: it keeps the state reached by loading
+        from rest to it.
 
         Returns ``(f_t, df_du)`` (and ``df_dv``, zeros, with ``velocity_jacobian=True``);
         ``df_du`` is dense ``(..., n, n)`` (``None`` with ``jacobian=False``).
         """
         u = np.asarray(u_t, float)
         n = u.shape[-1]
-        z0 = np.zeros(u.shape[:-1])
+        z0 = self._step(np.zeros(u.shape[:-1]), u[..., 0])[0]  # from rest at u = 0 to the first sample
         for _ in range(100):
             zn, _, gz, _ = self._period(u, z0)
             P = np.prod(gz, axis=-1)
             r = zn - z0
-            z0 = z0 + r / (1.0 - P)
+            z0 = z0 + np.divide(r, 1.0 - P, out=np.zeros_like(r), where=P < 1.0)  # P = 1: u constant, any z0
             if np.all(np.abs(r) <= 1e-14 * self.z_s):
                 break
         else:
@@ -207,7 +209,7 @@ class BoucWen(JointLaw):
 
         _, Jn = sweep(np.zeros(u.shape[:-1] + (n,)))
         P = np.prod(gz, axis=-1)
-        J, _ = sweep(Jn / (1.0 - P)[..., None])
+        J, _ = sweep(np.divide(Jn, (1.0 - P)[..., None], out=np.zeros_like(Jn), where=(P < 1.0)[..., None]))
         f = self.k_inf * u + zs
         D = J + self.k_inf * eye
         return (f, D, np.zeros_like(D)) if velocity_jacobian else (f, D)

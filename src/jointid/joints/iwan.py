@@ -114,7 +114,7 @@ class Iwan4(JointLaw):
 
     def derived(self) -> dict:
         return {"phi_max": self.phi_max, "R": self.R, "S": self.S, "dissipation_exponent": 3.0 + self.chi,
-                "n_elements": self.sliders.n_elements}
+                "n_elements": self.sliders.n_elements, "n_sliders": self.n_sliders, "phi_min_ratio": self.phi_min_ratio}
 
     # --- closed forms ---------------------------------------------------------------
     def backbone(self, a):
