@@ -201,3 +201,24 @@ def test_a_set_killed_between_its_two_renames_is_put_in_place_by_the_next_run(tm
     remove_leftovers(out)
     assert (out / "results.json").read_text() == "new\n"
     assert not list(tmp_path.glob(".out.*"))
+
+
+def test_ctrl_c_during_the_swap_is_held_back_and_says_the_new_set_is_in_place(tmp_path, monkeypatch):
+    import os
+    import signal
+
+    out = tmp_path / "o"
+    with output_set(out, kind="identify") as tmp:
+        (tmp / "results.json").write_text("old\n")
+    real = os.replace
+
+    def interrupted(a, b):  # Ctrl-C arrives between the two renames
+        if str(b) == str(out):
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(a, b)
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt, match="complete and is in"):
+        with output_set(out, kind="identify") as tmp:
+            (tmp / "results.json").write_text("new\n")
+    assert (out / "results.json").read_text() == "new\n" and not list(tmp_path.glob(".o.*"))

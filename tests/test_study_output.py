@@ -268,3 +268,19 @@ def test_a_plan_of_fewer_campaigns_than_the_file_gives_statistics_of_its_own(don
     first = json.loads((done2 / "campaigns.jsonl").read_text().splitlines()[0])
     stats = json.loads((out / "study.json").read_text())["statistics"]
     assert stats == json.loads(json.dumps(study_mod.study_statistics([first])))  # of campaign 0 alone
+
+
+def test_ctrl_c_while_the_final_files_are_moved_is_held_back_and_told_truly(done2, tmp_path, monkeypatch):
+    out = _copy(done2, tmp_path)
+    real = os.replace
+
+    def interrupted(a, b):
+        if Path(a).parent.name.endswith(".ready"):
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(a, b)
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(study_mod.StudyInterrupted, match="the study was complete"):
+        run_study(small_plan(campaigns=2), out, report=False)
+    monkeypatch.undo()
+    assert _final_consistent(out)[0] == 2 and not (out / "report.html").exists()

@@ -959,6 +959,10 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
         plan = StudyPlan.from_mapping(plan) if isinstance(plan, dict) else load_study_plan(plan)
     out = Path(out_dir)
     marker = check_study_folder(out, plan)
+    if scheduler is not None and client is None:  # a bad address or no scheduler there: before the folder is made
+        from .parallel import check_scheduler
+
+        check_scheduler(scheduler)
     _recover_final(out)
     path = out / RESULTS_FILE
     done = read_campaign_lines(path, plan)  # refuses lines of another plan; changes nothing
@@ -1017,9 +1021,15 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
     lost_lines = {line["index"]: line for line in new if line["index"] not in done}
     current = tuple(done.get(i) or lost_lines[i] for i in range(plan.n_campaigns))
     result = StudyResult(plan.name, plan, current, tuple(study_statistics(current)), n_run=len(todo))
+    run_id = new_run_id()
     try:
-        _write_final_set(out, result, new_run_id(), report)
+        _write_final_set(out, result, run_id, report)
     except KeyboardInterrupt:
+        from ..io.outputset import read_marker
+
+        if (read_marker(out) or {}).get("run_id") == run_id:  # Ctrl-C held back until the set was in place
+            raise StudyInterrupted(f"the study was complete: all {plan.n_campaigns} campaigns are saved in {path} and "
+                                   f"the final files written") from None
         raise StudyInterrupted(f"all {plan.n_campaigns} campaigns are saved in {path} and {_final_state(out)}; "
                                f"run the same command again to write the final files") from None
     return result

@@ -297,10 +297,18 @@ def output_set(out, run_id=None, kind="identify", inputs=()):
         atomic_write(tmp / MARKER, marker_text(run_id, kind, _files_of(tmp)))
         _check_content(out, kind)  # nothing else arrived in ``out`` while the set was written
         old = out.parent / f".{out.name}.old.{os.getpid()}-{run_id}.tmp"
-        with deferred_interrupt():
-            if out.exists():
-                os.replace(out, old)
-            os.replace(tmp, out)
+        swapped = False
+        try:
+            with deferred_interrupt():
+                if out.exists():
+                    os.replace(out, old)
+                os.replace(tmp, out)
+                swapped = True
+        except KeyboardInterrupt:
+            if not swapped:
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+            raise KeyboardInterrupt(f"the new output set was complete and is in {out} (run id {run_id})") from None
         shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
