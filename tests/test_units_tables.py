@@ -322,6 +322,7 @@ def test_modal_console_carries_units(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_public_data_report_tables_carry_units(tmp_path, shared_data):
+def test_public_data_report_tables_carry_units(tmp_path, shared_data, capsys):
     main(["public-data", "--out", str(tmp_path / "pub")])
     check_page(tmp_path / "pub" / "report.html")
+    check_console(capsys.readouterr().out)
