@@ -35,6 +35,7 @@ import numpy as np
 
 from ..identify.broadband import BroadbandFit, BroadbandForceStateMapping, EquivalentLinearTrack, equivalent_linear_track
 from ..identify.gain import GainFit, PooledGainForceStateMapping, sine_dwell_signals
+from ..rounding import format_pm, format_value
 from ..io.datasets import (
     load_f16_sinesweep,
     load_silverbox_multilevel,
@@ -469,21 +470,23 @@ class UnespDwellResult:
         lines = [f"UNESP bolted beam, sine dwells {list(self.frequencies_hz)} Hz, shaker voltage as force, response "
                  f"{self.response!r}, {self.n_harmonics} harmonics", self.fit.report(),
                  f"  goals: per-dwell omega1 within 1 % -> spread {100 * g['omega1_spread']:.2f} % "
-                 f"({'met' if g['omega1_ok'] else 'NOT met'}); softening k3/m > 0 -> {g['k3_over_m']:.4g} ± "
-                 f"{g['k3_over_m_stderr']:.2g} ({'met' if g['softening_ok'] else 'NOT met'})"]
+                 f"({'met' if g['omega1_ok'] else 'NOT met'}); softening k3/m > 0 -> "
+                 f"{format_pm(g['k3_over_m'], g['k3_over_m_stderr'], '1/(m² s²)')} "
+                 f"({'met' if g['softening_ok'] else 'NOT met'})"]
         if self.corrected is not None:
             c = self.corrected
             lines.append(
                 f"  phase diagnostic: per-dwell c/m fits c0/m + tau (omega1^2 - omega^2) with tau = "
                 f"{1e3 * self.delay_s:.3f} ms (the response {'leads' if self.delay_s < 0 else 'lags'} the voltage); "
                 f"with the response shifted by it: f1 "
-                f"{c.f1_hz:.4f} Hz, k3/m {c.k3_over_m:.4g}, damping ratio per dwell "
+                f"{c.f1_hz:.4f} Hz, k3/m {format_value(c.k3_over_m)} 1/(m² s²), damping ratio per dwell "
                 + ", ".join(f"{100 * z:.3f} %" for z in c.damping_ratio())
                 + " at q_max " + ", ".join(f"{1e3 * q:.2f} mm" for q in c.q_max))
         if self.alternatives:
             lines.append("  sensitivity:")
             for a in self.alternatives:
-                lines.append(f"    {a['label']}: f1 {a['f1_hz']:.4f} Hz, k3/m {a['k3_over_m']:.4g}, gain {a['gain']:.4g}, "
+                lines.append(f"    {a['label']}: f1 {a['f1_hz']:.4f} Hz, k3/m {format_value(a['k3_over_m'])} 1/(m² s²), "
+                             f"force gain {format_value(a['gain'])} N/V, "
                              f"per-dwell spread {100 * a['omega1_spread']:.2f} %")
         return "\n".join(lines)
 
