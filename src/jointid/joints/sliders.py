@@ -62,7 +62,7 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     w = np.broadcast_to(k, L.shape)
     seen = L >= 0
     flat = (bidx * n * n + rows * n + L)[seen]
-    D = -np.bincount(flat, weights=w[seen], minlength=nb * n * n).reshape(nb, n, n)
+    D = -np.bincount(flat, weights=w[seen], minlength=nb * n * n).astype(float).reshape(nb, n, n)
     D[:, np.arange(n), np.arange(n)] += ktot
     if centre:
         k_never = (np.where(L[0] < 0, k, 0.0)).sum(axis=-1)  # the same elements at every sample
