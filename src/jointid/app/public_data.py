@@ -35,7 +35,6 @@ import numpy as np
 
 from ..identify.broadband import BroadbandFit, BroadbandForceStateMapping, EquivalentLinearTrack, equivalent_linear_track
 from ..identify.gain import GainFit, PooledGainForceStateMapping, sine_dwell_signals
-from ..rounding import format_pm, format_value
 from ..io.datasets import (
     load_f16_sinesweep,
     load_silverbox_multilevel,
@@ -44,6 +43,7 @@ from ..io.datasets import (
     silverbox_multilevel_levels,
 )
 from ..signal.broadband import average_periods, find_periodic_segments, periodic_states, random_states
+from ..rounding import format_pm, format_value
 
 __all__ = [
     "SILVERBOX_REFERENCE",
