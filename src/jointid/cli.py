@@ -479,6 +479,10 @@ def main(argv=None) -> int:
         if getattr(args, "quiet", False) or args.command in ("identify", "example", "demo"):
             warnings.simplefilter("ignore", JointidWarning)
         try:
+            if getattr(args, "scheduler", None) is not None:  # a bad address: one line, before any folder is made
+                from .app.parallel import check_scheduler
+
+                check_scheduler(args.scheduler)
             _resolve_outputs(args)
             if getattr(args, "out", None) is not None:  # refuse an unwritable --out before the work
                 from .io.outputset import check_command_output

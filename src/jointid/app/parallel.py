@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import sys
 import time
 from contextlib import contextmanager
@@ -35,12 +36,205 @@ from contextlib import contextmanager
 from .._blas import single_threaded
 from ..errors import ClusterLostError, SchedulerError
 
-__all__ = ["map_tasks", "dask_client", "local_cluster", "progress_bar", "resolve_jobs", "ALLOWED_FAILURES"]
+__all__ = ["map_tasks", "dask_client", "local_cluster", "progress_bar", "resolve_jobs", "check_scheduler",
+           "parse_scheduler_address", "ALLOWED_FAILURES"]
 
 #: Workers a task may lose (killed, out of memory) before the run stops with an error.
 ALLOWED_FAILURES = 3
 
 _INSTALL = "parallel work needs dask.distributed: pip install 'distributed>=2024.1'"
+
+
+# ----------------------------------------------------------------------------------------------------------
+# scheduler addresses: checked before any work, and before any output folder is made
+
+#: Address schemes of dask.distributed's communication layer.
+SCHEDULER_SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+#: Seconds to resolve, connect to and hear the handshake of a scheduler (each step shares this budget).
+PROBE_TIMEOUT = 8.0
+
+_HOST = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_](?:[A-Za-z0-9_.-]{0,251}[A-Za-z0-9_])?)$")
+
+
+def parse_scheduler_address(address):
+    """``(scheme, host, port)`` of a dask scheduler address, or :class:`~jointid.errors.SchedulerError`.
+
+    ``tcp://host:port`` (``host:port`` alone is read as tcp; the port defaults to dask's 8786),
+    ``tls://host:port``, ``ucx://``, ``ws://``, ``wss://`` and ``inproc://`` (a scheduler in
+    this process).  The host is a name or an IP address (IPv6 in brackets); the port is 1 to 65535.
+    """
+    if not isinstance(address, str) or not address.strip():
+        raise SchedulerError(f"scheduler address {address!r} is empty; give one like tcp://10.0.0.5:8786")
+    text = address.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    scheme = scheme.lower()
+    example = "tcp://10.0.0.5:8786"
+    if scheme not in SCHEDULER_SCHEMES:
+        raise SchedulerError(f"scheduler address {address!r}: scheme {scheme!r} is not one of dask's "
+                             f"({', '.join(SCHEDULER_SCHEMES)}); give one like {example}")
+    if scheme == "inproc":
+        if not rest:
+            raise SchedulerError(f"scheduler address {address!r}: inproc:// needs the scheduler's name in this process")
+        return scheme, rest, None
+    if "/" in rest or "?" in rest or "#" in rest:
+        raise SchedulerError(f"scheduler address {address!r}: a scheduler address is scheme://host:port, without a "
+                             f"path; give one like {example}")
+    if rest.startswith("["):
+        host, _, tail = rest.partition("]")
+        host += "]"
+        port_text = tail[1:] if tail.startswith(":") else (None if not tail else "?" + tail)
+    elif rest.count(":") == 1:
+        host, port_text = rest.split(":")
+    elif ":" in rest:
+        raise SchedulerError(f"scheduler address {address!r}: an IPv6 host goes in brackets, e.g. tcp://[::1]:8786")
+    else:
+        host, port_text = rest, None
+    if not host or not _HOST.match(host):
+        raise SchedulerError(f"scheduler address {address!r}: {host!r} is not a host name or IP address; give one "
+                             f"like {example}")
+    if port_text is None:
+        port = 8786
+    else:
+        if not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
+            raise SchedulerError(f"scheduler address {address!r}: port {port_text!r} is not a number from 1 to 65535")
+        port = int(port_text)
+    return scheme, host, port
+
+
+def _tls_context(address):
+    from distributed.security import Security
+
+    ctx = Security().get_connection_args("client").get("ssl_context")
+    if ctx is None:
+        raise SchedulerError(f"scheduler address {address!r}: tls:// needs the cluster's certificates in the dask "
+                             f"configuration (distributed.comm.tls.ca-file, .client.cert and .client.key); none are set")
+    return ctx
+
+
+def _resolve(host, port, deadline, address):
+    """``getaddrinfo`` with a deadline (it can block much longer on a name no DNS server answers for)."""
+    import socket
+    import threading
+
+    box = {}
+
+    def look_up():
+        try:
+            box["info"] = socket.getaddrinfo(host.strip("[]"), port, type=socket.SOCK_STREAM)
+        except OSError as exc:
+            box["error"] = exc
+
+    t = threading.Thread(target=look_up, daemon=True)
+    t.start()
+    t.join(max(0.1, deadline - time.monotonic()))
+    if "info" in box and box["info"]:
+        return box["info"]
+    why = f"({box['error']})" if "error" in box else "(no answer from the name service)"
+    raise SchedulerError(f"cannot reach the dask scheduler at {address!r}: host name {host!r} cannot be resolved {why}")
+
+
+def _recv_exact(sock, n, deadline):
+    data = b""
+    while len(data) < n:
+        sock.settimeout(max(0.05, deadline - time.monotonic()))
+        chunk = sock.recv(min(n - len(data), 65536))
+        if not chunk:
+            break
+        data += chunk
+    return data
+
+
+def _probe(scheme, host, port, address, timeout):
+    """Connect to a tcp or tls scheduler address and read the handshake a dask scheduler sends first.
+
+    A dask comm frames every message as its length (8 bytes, little-endian), the number of
+    frames, their lengths and the frames; the handshake is a small msgpack map with the keys
+    ``compression``, ``python`` and ``pickle-protocol``.  Anything else (an HTTP service that
+    waits for a request, a silent listener, other bytes) is not a dask scheduler.
+    """
+    import socket
+    import struct
+
+    deadline = time.monotonic() + timeout
+    infos = _resolve(host, port, deadline, address)
+    sock, error = None, None
+    for family, kind, proto, _, sockaddr in infos:
+        try:
+            sock = socket.socket(family, kind, proto)
+            sock.settimeout(max(0.05, deadline - time.monotonic()))
+            sock.connect(sockaddr)
+            break
+        except OSError as exc:
+            error = exc
+            sock.close()
+            sock = None
+    if sock is None:
+        why = "no answer" if isinstance(error, socket.timeout) else str(error)
+        raise SchedulerError(f"cannot reach the dask scheduler at {address!r}: {why}; is the scheduler running and "
+                             f"is its port open from here?")
+    def not_dask(what="it answers with something else"):
+        return SchedulerError(f"{address!r} is not a dask scheduler: something listens there but {what} (a dashboard "
+                              f"or other HTTP port? a scheduler prints its address as 'Scheduler at:' when it starts)")
+
+    try:
+        if scheme == "tls":
+            ctx = _tls_context(address)
+            sock = ctx.wrap_socket(sock, server_hostname=host.strip("[]") if ctx.check_hostname else None)
+        head = _recv_exact(sock, 8, deadline)
+        if len(head) < 8:
+            raise not_dask()
+        (n,) = struct.unpack("<Q", head)
+        if not 24 <= n <= 65536:
+            raise not_dask()
+        body = _recv_exact(sock, n, deadline)
+        (n_frames,) = struct.unpack("<Q", body[:8]) if len(body) == n else (0,)
+        if not 1 <= n_frames <= 16 or b"pickle-protocol" not in body:
+            raise not_dask()
+    except socket.timeout:
+        raise not_dask(f"sent no dask handshake within {timeout:g} s") from None
+    except OSError as exc:
+        if isinstance(exc, SchedulerError):
+            raise
+        raise not_dask(f"the connection failed before a dask handshake ({exc})") from None
+    finally:
+        sock.close()
+
+
+def check_scheduler(address, timeout=None):
+    """Check a scheduler address before any work: its form, and that a dask scheduler answers there.
+
+    tcp and tls addresses are probed: the host name resolved, a connection opened and the
+    handshake a dask scheduler sends first read, all within ``timeout`` seconds (default
+    :data:`PROBE_TIMEOUT`).  Other
+    schemes are checked for form and for their communication backend.
+
+    Returns
+    -------
+    str
+        The address as dask takes it (``host:port`` gets ``tcp://``).
+
+    Raises
+    ------
+    jointid.errors.SchedulerError
+        With one line saying what is wrong.
+    """
+    scheme, host, port = parse_scheduler_address(address)
+    timeout = PROBE_TIMEOUT if timeout is None else float(timeout)
+    if scheme in ("tcp", "tls"):
+        if scheme == "tls":
+            _tls_context(address)
+        _probe(scheme, host, port, address, timeout)
+    elif scheme != "inproc":
+        try:
+            from distributed.comm.registry import get_backend
+
+            get_backend(scheme)
+        except Exception as exc:  # noqa: BLE001 - a missing optional backend (ucx-py, websockets)
+            raise SchedulerError(f"scheduler address {address!r}: dask cannot speak {scheme}:// here ({exc})") from None
+    return f"{scheme}://{host}" + ("" if port is None else f":{port}")
 
 
 def resolve_jobs(jobs) -> int:
@@ -113,10 +307,13 @@ def dask_client(jobs=1, scheduler=None, timeout="20s"):
     except ImportError as exc:  # pragma: no cover - distributed is a declared dependency
         raise ImportError(_INSTALL) from exc
     if scheduler:
+        address = check_scheduler(scheduler)
         try:
-            client = Client(scheduler, timeout=timeout)
+            client = Client(address, timeout=timeout)
         except (OSError, TimeoutError) as exc:
             raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from exc
+        except Exception as exc:  # noqa: BLE001 - whatever answers there, it is no usable scheduler
+            raise SchedulerError(f"cannot use the dask scheduler at {scheduler!r}: {type(exc).__name__}: {exc}") from None
         lost = False
         try:
             yield client
