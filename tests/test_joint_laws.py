@@ -410,3 +410,36 @@ def test_a_constant_motion_keeps_the_state_loaded_from_rest(law):
     f, D = law.aft(np.full(8, 1.5e-3))
     assert np.allclose(f, law.backbone(1.5e-3) if not isinstance(law, Iwan4) else law.sliders.backbone(1.5e-3))
     assert np.all(np.isfinite(D))
+
+
+# --- first harmonic (equivalent linearisation) -------------------------------------------------------------
+def test_first_harmonic_closed_forms_against_the_sampled_force():
+    from jointid.joints._core import JointLaw
+
+    for law, amps in ((JENKINS, [1e-3, 3e-3, 1e-2]), (DISCRETE, [1e-3, 5e-3])):
+        for a in amps:
+            closed = np.array(law.first_harmonic(a))
+            sampled = np.array(JointLaw.first_harmonic(law, a, n=2**14))
+            assert np.allclose(closed, sampled, rtol=1e-6, atol=1e-9 * law.backbone(1.0)), (law.name, a)
+    k, kl = BW.first_harmonic(0.01, n=2**14)
+    assert kl == pytest.approx(BW.dissipation(0.01) / (np.pi * 0.01**2), rel=1e-6)
+
+
+def test_iwan4_first_harmonic_micro_slip_law_and_discretisation():
+    from jointid.identify.jointlaw import iwan_harmonic_stiffness_integral
+
+    law = Iwan4(F_S=2.0, K_T=2000.0, chi=-0.5, beta=0.3, n_sliders=1600)
+    a = 0.5 * law.phi_max
+    k, kl = law.first_harmonic(a)
+    assert k == pytest.approx(law.K_T - law.R * a ** (law.chi + 1) * iwan_harmonic_stiffness_integral(law.chi), rel=1e-10)
+    assert kl == pytest.approx(law.dissipation(a) / (np.pi * a**2), rel=1e-14)
+    for r in (0.1, 0.9, 1.0, 1.5, 4.0):  # continuous closed form vs its discretisation, both sides of phi_max
+        cont = np.array(law.first_harmonic(r * law.phi_max))
+        disc = np.array(law.sliders.first_harmonic(r * law.phi_max))
+        assert np.allclose(disc, cont, rtol=5e-5, atol=0), r
+
+
+def test_polynomial_first_harmonic_is_the_duffing_backbone():
+    k, kl = SEED.first_harmonic(2e-3, omega=120.0, n=256)
+    assert k == pytest.approx(1.0e4 - 0.75 * 2.0e9 * 2e-3**2, rel=1e-12)
+    assert kl == pytest.approx(3.0 * 120.0, rel=1e-12)

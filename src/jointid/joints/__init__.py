@@ -41,6 +41,11 @@ law (``law.replace(kt=...)``).
     Energy dissipated per symmetric cycle of amplitude ``a`` (``omega`` only for
     rate-dependent laws), in closed form.
 
+``first_harmonic(a, omega=None)``
+    Equivalent linearisation ``(k_eq, k_loss)``: the first harmonic of the force over
+    ``u = a cos(omega t)`` is ``a (k_eq cos - k_loss sin)``, ``k_loss = D / (pi a^2)``
+    (closed form where one exists, else sampled from ``aft``).
+
 ``summary()``
     JSON-safe dictionary: law, parameters, units, derived quantities.
 
@@ -69,7 +74,7 @@ from ._core import JointLaw, harmonic_motion, loop_energy
 from .boucwen import BoucWen
 from .iwan import Iwan4, discretize_iwan4
 from .polynomial import TERM_FUNCTIONS, PolynomialLaw
-from .sliders import DiscreteIwan, Jenkins
+from .sliders import DiscreteIwan, Jenkins, jenkins_harmonic_stiffness
 
 __all__ = [
     "JointLaw",
@@ -80,6 +85,7 @@ __all__ = [
     "Iwan4",
     "discretize_iwan4",
     "BoucWen",
+    "jenkins_harmonic_stiffness",
     "harmonic_motion",
     "loop_energy",
 ]

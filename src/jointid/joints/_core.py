@@ -105,6 +105,27 @@ class JointLaw:
     def dissipation(self, a, omega=None):  # pragma: no cover - interface
         raise NotImplementedError
 
+    def first_harmonic(self, a, omega=None, n: int = 4096):
+        """Equivalent linearisation at amplitude ``a``: ``(k_eq, k_loss)``.
+
+        For ``u = a cos(omega t)`` the force's first harmonic is
+        ``a (k_eq cos(omega t) - k_loss sin(omega t))``; ``k_loss = D / (pi a^2)`` with ``D`` the
+        dissipation per cycle.  This generic version samples :meth:`aft` over ``n`` points
+        (laws with a closed form override it).
+        """
+        a = np.asarray(a, float)
+        u = harmonic_motion(a, n)
+        t = 2.0 * np.pi * np.arange(n) / n
+        v = None
+        if self.rate_dependent:
+            self._need_velocity(omega, "omega")
+            v = -a[..., None] * float(omega) * np.sin(t)
+        f = self.aft(u, v, jacobian=False)[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            k = 2.0 / n * (f @ np.cos(t)) / a
+            kl = -2.0 / n * (f @ np.sin(t)) / a
+        return _scalar_out(k), _scalar_out(kl)
+
     def _need_velocity(self, v, what):
         if v is None:
             raise StructureError(f"{self.name}: the law depends on the velocity; give {what}")

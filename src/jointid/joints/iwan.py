@@ -29,10 +29,11 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+from scipy import integrate
 
 from ..errors import StructureError
 from ._core import JointLaw, _number, _scalar_out
-from .sliders import DiscreteIwan
+from .sliders import DiscreteIwan, jenkins_harmonic_stiffness
 
 __all__ = ["Iwan4", "discretize_iwan4"]
 
@@ -134,6 +135,31 @@ class Iwan4(JointLaw):
         macro = 4.0 * R * (a * pm ** (c + 2.0) / (c + 2.0) - pm ** (c + 3.0) / (c + 3.0)) + 4.0 * S * pm * (a - pm)
         return _scalar_out(np.where(a <= pm, micro, macro))
 
+    def first_harmonic(self, a, omega=None, n=None):
+        """``(k_eq, k_loss)`` of the continuous model at amplitude ``a``.
+
+        ``k_eq = K_T - R a^(chi + 1) I(chi)`` in micro-slip, with
+        ``I(chi) = int_0^1 s^chi (1 - g(s)) ds`` and ``g`` the first-harmonic stiffness of a
+        unit Jenkins element slipping at ``s a`` (:func:`jenkins_harmonic_stiffness`); in
+        macro-slip ``int_0^phi_max R phi^chi g(phi / a) dphi + S g(phi_max / a)``.  The
+        integrals by adaptive quadrature; ``k_loss = D / (pi a^2)``.
+        """
+        a_arr = np.abs(np.asarray(a, float))
+        c, R, S, pm = self.chi, self.R, self.S, self.phi_max
+        k = np.empty(a_arr.shape)
+        for idx, ai in np.ndenumerate(a_arr):
+            if ai == 0.0:
+                k[idx] = self.K_T
+            elif ai <= pm:
+                k[idx] = self.K_T - R * ai ** (c + 1.0) * _loss_integral(c, 1.0)
+            else:
+                top = pm / ai
+                part = R * ai ** (c + 1.0) * (top ** (c + 1.0) / (c + 1.0) - _loss_integral(c, top))
+                k[idx] = part + S * float(jenkins_harmonic_stiffness(top))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            kl = self.dissipation(a_arr) / (np.pi * a_arr**2)
+        return _scalar_out(k), _scalar_out(kl)
+
     def microslip_dissipation(self, force_amplitude):
         """Segalman's small-force law ``4 R (F0 / K_T)^(chi + 3) / ((chi + 2)(chi + 3))``."""
         F0 = np.abs(np.asarray(force_amplitude, float))
@@ -148,6 +174,14 @@ class Iwan4(JointLaw):
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
         """Periodic force and exact Jacobian of :attr:`sliders` (see :meth:`DiscreteIwan.aft`)."""
         return self.sliders.aft(u_t, v_t, velocity_jacobian=velocity_jacobian, jacobian=jacobian, state0=state0)
+
+
+def _loss_integral(chi, top):
+    """``int_0^top s^chi (1 - g(s)) ds`` (``g``: :func:`jenkins_harmonic_stiffness`)."""
+    val, _ = integrate.quad(
+        lambda s: s**chi * (1.0 - jenkins_harmonic_stiffness(s)), 0.0, top, limit=200, epsabs=0.0, epsrel=1e-12
+    )
+    return float(val)
 
 
 def discretize_iwan4(law: Iwan4, n_sliders: int = 300, phi_min_ratio: float = 1e-6) -> DiscreteIwan:

@@ -18,7 +18,16 @@ import numpy as np
 from ..errors import StructureError
 from ._core import JointLaw, _number, _scalar_out
 
-__all__ = ["Jenkins", "DiscreteIwan"]
+__all__ = ["Jenkins", "DiscreteIwan", "jenkins_harmonic_stiffness"]
+
+
+def jenkins_harmonic_stiffness(s):
+    """First-harmonic stiffness of a unit Jenkins element whose slip displacement is ``s`` times
+    the amplitude (Caughey's bilinear hysteresis): ``(t - sin(2 t) / 2) / pi`` with
+    ``cos t = 1 - 2 s`` for ``s < 1``, one for ``s >= 1`` (stuck)."""
+    s = np.clip(np.asarray(s, float), 0.0, 1.0)
+    t = np.arccos(1.0 - 2.0 * s)
+    return (t - 0.5 * np.sin(2.0 * t)) / np.pi
 
 
 def _slider_aft(u, k, phi, x0, jacobian, centre=False):
@@ -202,6 +211,15 @@ class DiscreteIwan(JointLaw):
         a = np.abs(np.asarray(a, float))[..., None]
         return _scalar_out((4.0 * self.slip_force * np.maximum(a - self.slip_displacement, 0.0)).sum(axis=-1))
 
+    def first_harmonic(self, a, omega=None, n=None):
+        """``(k_eq, k_loss)`` at amplitude ``a`` in closed form (sum of the elements' own)."""
+        a = np.abs(np.asarray(a, float))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g = jenkins_harmonic_stiffness(self.slip_displacement / a[..., None])
+            k = (self.stiffness * g).sum(axis=-1)
+            kl = self.dissipation(a) / (np.pi * a**2)
+        return _scalar_out(k), _scalar_out(kl)
+
 
 @dataclass(frozen=True, eq=False)
 class Jenkins(JointLaw):
@@ -251,3 +269,7 @@ class Jenkins(JointLaw):
     def dissipation(self, a, omega=None):
         a = np.abs(np.asarray(a, float))
         return _scalar_out(4.0 * self.Fs * np.maximum(a - self.slip_displacement, 0.0))
+
+    def first_harmonic(self, a, omega=None, n=None):
+        """``(kt g(a_s / a), D / (pi a^2))``: Caughey's equivalent stiffness and loss stiffness."""
+        return self._elements.first_harmonic(a)
