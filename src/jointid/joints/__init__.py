@@ -30,7 +30,8 @@ law (``law.replace(kt=...)``).
     ``(..., n, n)``.  It is not triangular: a slider's position at sample ``j`` depends on
     the sample where it last slipped, which may lie later in the period (the history wraps
     round).  For the slider laws each row has at most one non-zero per element plus the
-    diagonal; for polynomial terms it is diagonal.  The map is piecewise smooth: at a
+    diagonal (two for an element that never slips with ``state0="centre"``: the largest
+    and smallest samples); for polynomial terms it is diagonal.  The map is piecewise smooth: at a
     sample where an element is exactly at its slip limit the derivative is one-sided.
     ``jacobian=False`` skips the Jacobians (returned as ``None``) for long periods.
 
