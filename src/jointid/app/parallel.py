@@ -366,7 +366,7 @@ def _call(fn, args):
 
 
 def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=False, desc="tasks", on_result=None,
-              on_lost=None, cleanup=None):
+              on_lost=None, cleanup=None, files=None):
     """``[fn(*args) for args in arglist]``, in this process or on dask workers.
 
     Parameters
@@ -396,6 +396,11 @@ def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=Fals
     cleanup : callable, optional
         Called without arguments on every worker once the tasks are done (e.g. to remove what
         workers killed during the run left on their machines); a failure of it is ignored.
+    files : sequence of path, optional
+        Files the tasks read.  On an existing cluster (``scheduler`` or ``client``) every
+        worker is asked first whether it sees them, with the sizes they have here
+        (:func:`check_worker_files`): a worker on another machine without the shared folder
+        stops the run before any task, not with every task failing at the end.
 
     Returns
     -------
@@ -414,15 +419,66 @@ def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=Fals
                 bar.update()
             return results
         if client is not None:
+            if files is not None:
+                check_worker_files(client, files)
             _gather(client, fn, arglist, results, bar, on_result, on_lost)
             _run_on_workers(client, cleanup)
         else:
             with dask_client(min(resolve_jobs(jobs), len(arglist)), scheduler) as cl:
+                if files is not None and scheduler is not None:
+                    check_worker_files(cl, files)
                 _gather(cl, fn, arglist, results, bar, on_result, on_lost)
                 _run_on_workers(cl, cleanup)
         return results
     finally:
         bar.close()
+
+
+def _file_sizes(paths):
+    """Size of each file (``None``: not a readable file) as this process sees it."""
+    out = []
+    for p in paths:
+        try:
+            out.append(os.stat(p).st_size if os.path.isfile(p) and os.access(p, os.R_OK) else None)
+        except OSError:
+            out.append(None)
+    return out
+
+
+def check_worker_files(client, paths):
+    """Refuse to start when a worker does not see ``paths`` as this process does.
+
+    Every connected worker stats the files (by the same path, relative ones from its own
+    working folder); a file missing there or of another size means the worker reads
+    another folder than this process (no shared file system, another mount point).  A
+    cluster without workers yet is not checked.
+
+    Raises
+    ------
+    jointid.errors.RecordFileNotFoundError
+        Naming the worker, the first file and how many files differ.
+    """
+    from ..errors import RecordFileNotFoundError
+
+    paths = [str(p) for p in paths]
+    if not paths:
+        return
+    here = _file_sizes(paths)
+    try:
+        views = client.run(_file_sizes, paths)
+    except Exception as exc:  # noqa: BLE001 - a worker that cannot even answer
+        raise SchedulerError(f"cannot ask the dask workers whether they see the input files: "
+                             f"{type(exc).__name__}: {exc}") from None
+    for worker, there in sorted(views.items()):
+        bad = [i for i, (a, b) in enumerate(zip(here, there)) if a != b]
+        if bad:
+            i = bad[0]
+            what = "does not exist there" if there[i] is None else f"has {there[i]} bytes there, {here[i]} here"
+            raise RecordFileNotFoundError(
+                f"the dask worker {worker} does not see the input files as this machine does: {paths[i]} {what} "
+                f"({len(bad)} of {len(paths)} files differ); the workers read the files by the same path, so put the "
+                f"folder on a file system shared at the same path on every worker, or run without --scheduler; "
+                f"nothing was run")
 
 
 def _run_on_workers(client, fn):

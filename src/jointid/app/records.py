@@ -289,7 +289,8 @@ def flag_group_outliers(outcomes) -> list:
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
         for i, (ratio, median) in damping.items():
             c, se = ceq[i]
-            f = Flag("scale_outlier", f"equivalent viscous damping c_eq = {c:.6g} (± {se:.2g}) is {ratio:.4g} times the "
+            pm = f" (± {se:.2g})" if se is not None and np.isfinite(se) else ""
+            f = Flag("scale_outlier", f"equivalent viscous damping c_eq = {c:.6g}{pm} is {ratio:.4g} times the "
                                       f"group's trend of c_eq against q_max ({median:.6g} there); acceleration in g "
                                       f"instead of m/s^2 or a mis-scaled channel?",
                      {"c": outcomes[i].fit.c, "c_equivalent": c, "c_equivalent_stderr": se, "group_trend_c": median,
@@ -332,4 +333,5 @@ def process_all(specs, settings, to_modal) -> list:
         return RecordOutcome(specs[i], "failed", f"{_context(specs[i])}lost on the workers: {message}")
 
     return map_tasks(process_record, [(spec, settings, tm) for spec, tm in zip(specs, per_record)], jobs=settings.jobs,
-                     scheduler=settings.scheduler, progress=settings.progress, desc="records", on_lost=lost)
+                     scheduler=settings.scheduler, progress=settings.progress, desc="records", on_lost=lost,
+                     files=[spec.path for spec in specs])  # on an existing cluster: do its workers see the records?
