@@ -165,7 +165,7 @@ def test_a_failed_start_leaves_no_folder(tmp_path, monkeypatch, failure):
 
     monkeypatch.setattr(parallel, "map_tasks", start)
     with pytest.raises(SchedulerError if failure == "unreachable" else study_mod.StudyInterrupted) as info:
-        run_study(small_plan(campaigns=2), tmp_path / "out", scheduler="tcp://127.0.0.1:9")
+        run_study(small_plan(campaigns=2), tmp_path / "out", jobs=2)  # a cluster that fails to start
     assert not (tmp_path / "out").exists()
     if failure == "interrupted":
         assert str(info.value) == "no campaign was run and nothing was written"
