@@ -222,3 +222,14 @@ def test_ctrl_c_during_the_swap_is_held_back_and_says_the_new_set_is_in_place(tm
         with output_set(out, kind="identify") as tmp:
             (tmp / "results.json").write_text("new\n")
     assert (out / "results.json").read_text() == "new\n" and not list(tmp_path.glob(".o.*"))
+
+
+def test_other_commands_do_not_write_into_an_output_set(campaign, tmp_path, capsys):
+    res = tmp_path / "res"
+    assert main(["identify", str(campaign), "--out", str(res)] + FAST) == 0
+    before = _tree(res)
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text("[campaign]\nname = 'x'\n")
+    _refused(["simulate", cfg, "--out", res], capsys, "identify output set")
+    _refused(["demo", "--out", res, "--quiet"], capsys, "identify output set")
+    assert _tree(res) == before

@@ -216,11 +216,16 @@ def check_command_output(command: str, out, inputs=()) -> Path:
     """The check of ``jointid COMMAND ... --out OUT`` before the work (see :func:`check_output_folder`).
 
     ``identify`` and ``import`` write sets that replace the folder; ``study`` writes into a
-    study folder (see :func:`jointid.app.study.check_study_folder`); any other command only
-    needs a writable folder.
+    study folder (see :func:`jointid.app.study.check_study_folder`); any other command needs a
+    writable folder that is not an output set.
     """
-    if command not in _COMMANDS:
-        return _check_writable(out, replace_set=False)
+    if command not in _COMMANDS:  # writes into the folder: never into an output set (it would mix with it)
+        _check_writable(out, replace_set=False)
+        marker = read_marker(out) if Path(out).is_dir() else None
+        if marker is not None:
+            raise OutputError(f"{out}: holds a jointid {marker['kind']} output set; {command} would mix its files "
+                              f"with it, so give another folder")
+        return Path(out)
     kind, replace = _COMMANDS[command]
     if not replace:
         check_output_folder(out, kind, inputs, replace=False)
