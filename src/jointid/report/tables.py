@@ -80,7 +80,7 @@ def campaign_report(result) -> str:
     preload model with 95 % intervals, the force gain when identified, adequacy and selection,
     the paper's Table 5 per group, damping laws (Table 2), power laws, re-predictions,
     failures.  Every number goes through :mod:`jointid.report.formatting`."""
-    from .output import _delay_text, _law_rows, _power_rows
+    from .output import _delay_text, _law_rows, _power_rows, _reprediction_table
     from .summary import adequacy_rows, lead_lines, run_units, selection_rows, table5_rows
 
     summary = result.summary()
@@ -153,11 +153,16 @@ def campaign_report(result) -> str:
         out.append("")
         out.append("Broadband records (broadband force-state mapping; free-run simulation of held-out records):")
         out += ["  " + line for b in broadband for line in b.report().splitlines()]
-    reps = getattr(result, "repredictions", ())
+    reps = _reprediction_table(summary)
     if reps:
         out.append("")
         out.append("Re-predicted FRFs (identified model by harmonic balance vs the measured dwells):")
-        out += [f"  {r.report()}" for r in reps]
+        for r in reps:
+            peak = (f"peak frequency error {r['peak frequency error [%]']}, peak magnitude error "
+                    f"{r['peak magnitude error [%]']}" if r["peak resolved by the dwells"] is not False
+                    else "peak not bracketed by the dwells: no peak error")
+            out.append(f"  preload {r['preload']}, F = {r[f'F [{Fu}]']} {Fu}: {peak}, rms error at the measured "
+                       f"dwells {r['rms error at the measured dwells [%]']}")
     for row in getattr(result, "loops", ()):
         d = row.get("filtered") or {}
         if "rms_difference" in d:
