@@ -151,7 +151,7 @@ def test_jenkins_backbone_from_time_stepping():
     state = JENKINS.initial_state()
     f = []
     for x in u:
-        fx, state = JENKINS.force(x, state)
+        fx, state = JENKINS.force(x, None, state)
         f.append(fx)
     assert _rel(f, JENKINS.backbone(u)) < 1e-12
     assert JENKINS.backbone(1.0) == JENKINS.Fs and JENKINS.backbone(-1e-4) == pytest.approx(-0.1)
@@ -220,7 +220,7 @@ def test_time_stepping_over_a_sine_equals_aft(law):
     for _ in range(periods):
         f_t = []
         for x in u1:
-            fx, state = law.force(x, state)
+            fx, state = law.force(x, None, state)
             f_t.append(fx)
     f_aft, _ = law.aft(u1, jacobian=False)
     assert _rel(f_t, f_aft) < (1e-12 if law.masing else 1e-9)
@@ -232,7 +232,7 @@ def test_time_stepping_is_batched_like_aft():
     for _ in range(2):
         cols = []
         for j in range(50):
-            fj, state = DISCRETE.force(u[:, j], state)
+            fj, state = DISCRETE.force(u[:, j], None, state)
             cols.append(fj)
     # both start virgin at the first sample's slider position (0), so elements that never slip agree too
     f_aft, _ = DISCRETE.aft(u, jacobian=False)
@@ -271,7 +271,7 @@ def test_bouc_wen_backbone_from_time_stepping_and_not_masing():
     state = BW.initial_state()
     f = []
     for x in u:
-        fx, state = BW.force(x, state)
+        fx, state = BW.force(x, None, state)
         f.append(fx)
     assert _rel(f, BW.backbone(u)) < 1e-12
     assert BW.backbone(1.0) == pytest.approx(BW.k_inf + BW.z_s, rel=1e-12)
@@ -284,13 +284,13 @@ SEED = PolynomialLaw({"q": 1.0e4, "-q^3": 2.0e9, "q'": 3.0})
 
 def test_polynomial_law_is_the_seed_restoring_force():
     u, v = 1e-3, 0.2
-    f, state = SEED.force(u, SEED.initial_state(), v=v)
+    f, state = SEED.force(u, v, SEED.initial_state())
     assert f == pytest.approx(1.0e4 * u - 2.0e9 * u**3 + 3.0 * v, rel=1e-15)
     assert state.shape == (0,)
     assert SEED.parameters == {"omega1^2": 1.0e4, "k3": 2.0e9, "c": 3.0}
     assert SEED.units["k3"] == "1/(m^2 s^2)"
     with pytest.raises(StructureError, match="velocity"):
-        SEED.force(u, SEED.initial_state())
+        SEED.force(u, None, SEED.initial_state())
     with pytest.raises(StructureError, match="did you mean"):
         PolynomialLaw({"-q3": 1.0})
 

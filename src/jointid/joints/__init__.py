@@ -12,7 +12,7 @@ A law is an immutable (frozen) dataclass whose fields are its named parameters;
 ``law.parameters`` gives their values and ``law.units`` their SI units; a change makes a new
 law (``law.replace(kt=...)``).
 
-``force(u, state, v=None) -> (f, new_state)``
+``force(u, v, state) -> (f, new_state)``
     One time step to the motion ``u`` (any shape).  The hysteretic state is an explicit
     array with ``law.n_state`` entries on its last axis, created by
     ``law.initial_state(shape)`` (the virgin joint at rest at ``u = 0``); the law object never

@@ -93,7 +93,7 @@ class JointLaw:
         return dataclasses.replace(self, **changes)
 
     # --- protocol (implemented by subclasses) ---------------------------------------
-    def force(self, u, state, v=None):  # pragma: no cover - interface
+    def force(self, u, v, state):  # pragma: no cover - interface
         raise NotImplementedError
 
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True):  # pragma: no cover - interface

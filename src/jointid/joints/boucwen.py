@@ -138,7 +138,7 @@ class BoucWen(JointLaw):
         return s * w, dw0, rhs
 
     # --- protocol -----------------------------------------------------------------
-    def force(self, u, state, v=None):
+    def force(self, u, v, state):
         """One step to ``u``: ``(f, new_state)`` with ``state = (u_prev, z)``; ``v`` unused."""
         u = np.asarray(u, float)
         state = np.asarray(state, float)

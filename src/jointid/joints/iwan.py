@@ -167,9 +167,9 @@ class Iwan4(JointLaw):
         return _scalar_out(4.0 * self.R * (F0 / self.K_T) ** (c + 3.0) / ((c + 2.0) * (c + 3.0)))
 
     # --- time and frequency domain: the discretisation --------------------------------
-    def force(self, u, state, v=None):
+    def force(self, u, v, state):
         """One step of :attr:`sliders`: ``(f, new_state)``."""
-        return self.sliders.force(u, state, v)
+        return self.sliders.force(u, v, state)
 
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
         """Periodic force and exact Jacobian of :attr:`sliders` (see :meth:`DiscreteIwan.aft`)."""

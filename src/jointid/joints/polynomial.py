@@ -68,7 +68,7 @@ class PolynomialLaw(JointLaw):
     Examples
     --------
     >>> law = PolynomialLaw({"q": 1.0, "-q^3": 1.0, "q'": 1.0})      # q - q^3 + q'
-    >>> f, _ = law.force(0.5, law.initial_state(), v=2.0)
+    >>> f, _ = law.force(0.5, 2.0, law.initial_state())
     >>> float(f)
     2.375
     """
@@ -144,7 +144,7 @@ class PolynomialLaw(JointLaw):
                 dv = dv + c * pv(u, v)
         return f, du, dv
 
-    def force(self, u, state, v=None):
+    def force(self, u, v, state):
         """``(f, state)``; ``v`` is required when a damping term is present."""
         if self.rate_dependent:
             self._need_velocity(v, "the velocity v")

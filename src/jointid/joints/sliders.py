@@ -152,7 +152,7 @@ class DiscreteIwan(JointLaw):
         }
 
     # --- protocol -----------------------------------------------------------------
-    def force(self, u, state, v=None):
+    def force(self, u, v, state):
         """One step to relative motion ``u`` (any shape): ``(f, new_state)``; ``v`` is unused."""
         u = np.asarray(u, float)
         uu = u[..., None]
@@ -255,8 +255,8 @@ class Jenkins(JointLaw):
     def derived(self) -> dict:
         return {"slip_displacement": self.slip_displacement}
 
-    def force(self, u, state, v=None):
-        return self._elements.force(u, state, v)
+    def force(self, u, v, state):
+        return self._elements.force(u, v, state)
 
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
         """As :meth:`DiscreteIwan.aft` with one element."""
