@@ -284,3 +284,12 @@ def test_ctrl_c_while_the_final_files_are_moved_is_held_back_and_told_truly(done
         run_study(small_plan(campaigns=2), out, report=False)
     monkeypatch.undo()
     assert _final_consistent(out)[0] == 2 and not (out / "report.html").exists()
+
+
+def test_a_torn_line_of_unknown_plan_in_an_unmarked_folder_is_refused_untouched(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "campaigns.jsonl").write_bytes(b'{"index": 0, "se')  # cut short before its plan
+    with pytest.raises(study_mod.ManifestError, match="cannot be told"):
+        run_study(small_plan(campaigns=1), out, report=False)
+    assert (out / "campaigns.jsonl").read_bytes() == b'{"index": 0, "se' and sorted(os.listdir(out)) == ["campaigns.jsonl"]

@@ -966,6 +966,11 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
     _recover_final(out)
     path = out / RESULTS_FILE
     done = read_campaign_lines(path, plan)  # refuses lines of another plan; changes nothing
+    tail = _torn_tail(path.read_bytes()) if path.is_file() else b""
+    if tail.strip() and marker is None and not done and _tail_plan(tail) is None:
+        raise ManifestError(f"{path}: holds only a line cut short before it names its plan, in a folder without a "
+                            f"study marker: which plan made it cannot be told; remove the file or write the study to "
+                            f"another folder")
     created = [p for p in (out, out / MARKER, path) if not p.exists()]
     out.mkdir(parents=True, exist_ok=True)
     if marker is None:
