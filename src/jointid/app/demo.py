@@ -42,8 +42,9 @@ from ..errors import JointidWarning
 from ..modal.beam import SEED_TABLE4_HZ, seed_bolted_beam
 from ..modal.structure import Structure
 from ..modal.updating import update_to_frequencies
+from ..numerics.peaks import refine_peak
 from ..rig.plan import RigCampaign, MeasurementPlan, read_random_record, run_test_plan, structure_section, write_manifest
-from ..rig.rig import RigFRF, VirtualRig, refine_peak, seed_rig
+from ..rig.rig import RigFRF, VirtualRig, seed_rig
 from ..signal.frf import fit_modes, h1_estimate
 from .workflow import CampaignResult, IdentifySettings, identify_campaign
 from .reprediction import PEAK_RTOL, Reprediction, repredict_group

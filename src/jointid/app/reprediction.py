@@ -36,7 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import JointidError, JointidWarning
-from ..rig.rig import parabolic_peak, refine_peak
+from ..numerics.peaks import parabolic_peak, refine_peak
 from ..signal.harmonics import fit_harmonics
 
 __all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "with_repredictions",

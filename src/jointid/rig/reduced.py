@@ -32,7 +32,6 @@ Harmonic coefficient vectors follow :mod:`jointid.conventions`:
 
 from __future__ import annotations
 
-import functools
 import html
 from dataclasses import dataclass
 
@@ -41,6 +40,7 @@ import numpy as np
 from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
+from ..numerics.aft import aft_basis
 from .iwan import JointLaw
 
 __all__ = [
@@ -50,22 +50,6 @@ __all__ = [
 
 #: Joint directions a law may act on, and their row in ``FEModel.relative_motion``.
 JOINT_DIRECTIONS = {"transverse": 0, "rotation": 1}
-
-
-@functools.lru_cache(maxsize=16)
-def _aft_basis(n_harmonics: int, n_time: int):
-    n = n_coefficients(n_harmonics)
-    tau = 2.0 * np.pi * np.arange(n_time) / n_time
-    E = np.empty((n_time, n))
-    E[:, 0] = 1.0
-    kt = np.outer(tau, np.arange(1, n_harmonics + 1))
-    E[:, 1::2] = np.cos(kt)
-    E[:, 2::2] = np.sin(kt)
-    P = E.T * (2.0 / n_time)
-    P[0] *= 0.5
-    E.setflags(write=False)
-    P.setflags(write=False)
-    return E, P
 
 
 def series(coefficients, omega, t, derivative: int = 0) -> np.ndarray:
@@ -388,7 +372,7 @@ class ReducedModel:
         f_in = np.asarray(force, float)
         m = min(n, f_in.size)
         Fc[:m] = f_in[:m]
-        E, P = _aft_basis(H, int(n_time))
+        E, _, P = aft_basis(H, int(n_time), "F")  # P.T rows are samples: the layout of F @ P.T
         G, Hm = self._condensed(w, H)
         Xf = _complex(Fc)  # (H+1,)
         b = _real(np.einsum("jm,km,m->jk", self.joint_shapes, Hm, self.force_shape) * Xf).reshape(-1)
