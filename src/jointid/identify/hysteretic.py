@@ -1,0 +1,468 @@
+"""Hysteretic force-state mapping: a joint law fitted to the restoring force of all records at once.
+
+The single-mode model of a preload is
+
+``q'' + c q' + k q + f_joint(q) = Q(t)``,
+
+with ``f_joint`` a hysteretic joint law of :mod:`jointid.joints` (Jenkins or Segalman's
+four-parameter Iwan) acting on the modal coordinate.  Every steady-state record is reduced
+by the multi-harmonic fit of :func:`jointid.signal.harmonics.steady_state_signals` to the
+periodic ``q(t)``, ``q'(t)`` and the filtered ``q''(t)``; the force is fitted on the same
+harmonics.  The restoring force ``Q - q''`` then holds the harmonics ``1..H`` only, so the
+model is compared with it harmonic by harmonic (a Galerkin projection, as in harmonic
+balance): the law's force over the reconstructed period is evaluated by its ``aft`` (the
+slip history carried through the period twice, Masing) and projected on the same
+harmonics.  Comparing time samples instead would fit the law's harmonics above ``H``
+against nothing, which biases the force scale.
+
+The parameters split into a linear part (``k``, ``c`` and the law's force scale: ``kt`` of
+Jenkins, ``K_T`` of Iwan) solved by least squares at every value of the nonlinear part
+(Jenkins: the slip displacement; Iwan: ``phi_max``, ``chi``, ``beta``), which is found by
+variable projection (a coarse grid, then Gauss-Newton on the projected residual).
+
+Standard errors come from the sandwich covariance of all parameters, nonlinear ones
+included (their columns by central differences of the law's projected force), with the
+noise model of the records: white force noise on the force's harmonic coefficients and
+white acceleration noise on those of ``q''``, which also moves ``q`` and ``q'`` and
+through the law's exact ``aft`` Jacobian its force.  The noise levels are the residual
+rms of fits with many harmonics.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize
+
+from .._blas import single_threaded
+from ..errors import IdentificationError, IllConditionedWarning
+from ..joints import Iwan4, Jenkins
+from ..signal.harmonics import StateSignals
+
+__all__ = ["HystereticForceStateMapping", "HystereticFit", "LAWS"]
+
+#: Joint laws this estimator fits.
+LAWS = ("jenkins", "iwan4")
+#: Harmonics used to estimate a channel's noise level (fewer when the sampling does not allow them).
+NOISE_HARMONICS = 25
+_Z95 = 1.959963984540054
+
+
+def _basis(tau, omega, n_harmonics, dc=True):
+    ph = omega * np.asarray(tau, float)[:, None] * np.arange(1, n_harmonics + 1)
+    cols = np.empty((ph.shape[0], 2 * n_harmonics))
+    cols[:, 0::2] = np.cos(ph)
+    cols[:, 1::2] = np.sin(ph)
+    return np.column_stack([np.ones(ph.shape[0]), cols]) if dc else cols
+
+
+def _noise_level(tau, x, omega, n_harmonics, dt):
+    """Residual rms of ``x`` outside ``n_harmonics`` harmonics (below Nyquist), corrected for the fitted columns."""
+    nh = int(max(1, min(n_harmonics, math.ceil(0.5 / (dt * omega / (2 * np.pi))) - 1)))
+    B = _basis(tau, omega, nh)
+    coef = np.linalg.solve(B.T @ B, B.T @ x)
+    r = x - B @ coef
+    return float(np.sqrt(r @ r / max(x.size - B.shape[1], 1)))
+
+
+@dataclass
+class _Record:
+    H: int
+    omega: float
+    y: np.ndarray  # (2H,) force minus acceleration coefficients, harmonics 1..H
+    d: np.ndarray  # displacement coefficients (2H+1)
+    v: np.ndarray  # velocity coefficients (2H+1)
+    Ld: np.ndarray  # d = Ld a (2H+1, 2H+1)
+    Lv: np.ndarray
+    C: np.ndarray  # (B^T B)^-1 over the record (2H+1 square)
+    U: np.ndarray  # Cholesky factor of the Gram of harmonics 1..H
+    s_force: float
+    s_accel: float
+    q_max: float
+    frequency_hz: float
+    n_samples: int
+
+
+def _prepare(sig: StateSignals, i: int) -> _Record:
+    if not isinstance(sig, StateSignals):
+        raise IdentificationError(f"record {i}: the hysteretic force-state mapping expects StateSignals, "
+                                  f"got {type(sig).__name__}")
+    acc = sig.acceleration
+    H, w = acc.n_harmonics, sig.omega
+    t = np.asarray(sig.t, float)
+    tau = t - acc.t0
+    B = _basis(tau, w, H)
+    G = B.T @ B
+    F = np.linalg.solve(G, B.T @ np.asarray(sig.force, float))
+    a = np.asarray(acc.coefficients, float)
+    h = np.repeat(np.arange(1, H + 1), 2) * w
+    Lv = np.zeros((2 * H + 1, 2 * H + 1))  # integral: v_cos = -a_sin / (h w), v_sin = a_cos / (h w)
+    for j in range(H):
+        Lv[1 + 2 * j, 2 + 2 * j] = -1.0 / h[2 * j]
+        Lv[2 + 2 * j, 1 + 2 * j] = 1.0 / h[2 * j]
+    Ld = Lv @ Lv
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    s_f = _noise_level(tau, np.asarray(sig.force, float), w, NOISE_HARMONICS, dt)
+    s_a = _noise_level(tau, np.asarray(sig.accel_measured, float), w, NOISE_HARMONICS, dt)
+    C = np.linalg.inv(G)
+    return _Record(H, w, (F - a)[1:], Ld @ a, Lv @ a, Ld, Lv, C, np.linalg.cholesky(G[1:, 1:]).T, s_f, s_a,
+                   sig.q_max(), sig.frequency_hz, t.size)
+
+
+# --- the laws: unit-scale shapes of their nonlinear parameters -------------------------------------------------
+class _JenkinsShape:
+    names = ("log_slip_displacement",)
+    scale_name = "kt"
+
+    def __init__(self, **_):
+        pass
+
+    def unit(self, eta):
+        return Jenkins(1.0, math.exp(eta[0]))
+
+    def law(self, scale, eta):
+        return Jenkins(scale, scale * math.exp(eta[0]))
+
+    def bounds(self, qmax):
+        return [math.log(qmax.min() * 1e-3)], [math.log(qmax.max() * 10.0)]
+
+    def grid(self, qmax):
+        return [np.array([e]) for e in np.linspace(math.log(qmax.min() / 30), math.log(qmax.max() * 2), 28)]
+
+    def physical(self, p, cov):
+        """(names, values, covariance, units) of the physical parameters from ``(k, c, kt, log a_s)``."""
+        k, c, kt, la = p
+        a_s = math.exp(la)
+        J = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, a_s, kt * a_s], [0, 0, 0, a_s]], float)
+        return (("k", "c", "kt", "Fs", "slip_displacement"), np.array([k, c, kt, kt * a_s, a_s]), J @ cov @ J.T,
+                ("N/m", "N s/m", "N/m", "N", "m"))
+
+
+class _Iwan4Shape:
+    names = ("log_phi_max", "chi", "beta")
+    scale_name = "K_T"
+
+    def __init__(self, n_sliders=60, phi_min_ratio=1e-4, **_):
+        self.n_sliders = int(n_sliders)
+        self.phi_min_ratio = float(phi_min_ratio)
+
+    @staticmethod
+    def _fs_per_kt(eta):
+        pm, chi, beta = math.exp(eta[0]), eta[1], eta[2]
+        return pm * (beta + (chi + 1.0) / (chi + 2.0)) / (1.0 + beta)
+
+    def law(self, scale, eta):
+        return Iwan4(F_S=scale * self._fs_per_kt(eta), K_T=scale, chi=eta[1], beta=max(eta[2], 0.0),
+                     n_sliders=self.n_sliders, phi_min_ratio=self.phi_min_ratio)
+
+    def unit(self, eta):
+        return self.law(1.0, eta)
+
+    def bounds(self, qmax):
+        return [math.log(qmax.min() * 1e-2), -0.95, 0.0], [math.log(qmax.max() * 20.0), 0.95, 20.0]
+
+    def grid(self, qmax):
+        out = []
+        for e in np.linspace(math.log(qmax.min() / 5), math.log(qmax.max() * 3), 10):
+            for chi in (-0.7, -0.4, -0.1, 0.3):
+                for beta in (0.0, 0.5, 2.0):
+                    out.append(np.array([e, chi, beta]))
+        return out
+
+    def physical(self, p, cov):
+        k, c, kt = p[:3]
+        eta = p[3:]
+        r = self._fs_per_kt(eta)
+        g = np.zeros(3)
+        h = 1e-6
+        for i in range(3):
+            e1, e2 = eta.copy(), eta.copy()
+            e1[i] += h
+            e2[i] -= h
+            g[i] = (self._fs_per_kt(e1) - self._fs_per_kt(e2)) / (2 * h)
+        pm = math.exp(eta[0])
+        J = np.zeros((7, 6))
+        J[0, 0] = J[1, 1] = J[2, 2] = 1.0
+        J[3, 2] = r
+        J[3, 3:] = kt * g
+        J[4, 4] = J[5, 5] = 1.0
+        J[6, 3] = pm
+        return (("k", "c", "K_T", "F_S", "chi", "beta", "phi_max"), np.array([k, c, kt, kt * r, eta[1], eta[2], pm]),
+                J @ cov @ J.T, ("N/m", "N s/m", "N/m", "N", "1", "1", "m"))
+
+
+_SHAPES = {"jenkins": _JenkinsShape, "iwan4": _Iwan4Shape}
+
+
+@dataclass(frozen=True)
+class HystereticFit:
+    """A hysteretic joint law fitted over the records of a preload.
+
+    Attributes
+    ----------
+    law_name : str
+        ``"jenkins"`` or ``"iwan4"``.
+    names, values, stderr, units : tuple / array
+        The physical parameters: ``k`` (linear stiffness besides the joint), ``c`` (viscous
+        damping) and the law's own (Jenkins ``kt``, ``Fs``, ``slip_displacement``; Iwan
+        ``K_T``, ``F_S``, ``chi``, ``beta``, ``phi_max``), modal units per unit mass.
+    covariance : array
+        Sandwich covariance of ``values``.
+    law : JointLaw
+        The fitted joint law.
+    q_max, frequency_hz : array
+        Per record.
+    residual_rms : float
+        RMS of the weighted harmonic residual over the noise expected from the records (about one
+        for an adequate model).
+    """
+
+    law_name: str
+    names: tuple
+    values: np.ndarray
+    stderr: np.ndarray
+    units: tuple
+    covariance: np.ndarray = field(repr=False)
+    law: object = field(repr=False)
+    q_max: np.ndarray = field(repr=False)
+    frequency_hz: np.ndarray = field(repr=False)
+    residual_rms: float = float("nan")
+    n_records: int = 0
+    warnings: tuple = ()
+
+    def get(self, name) -> float:
+        return float(self.values[self.names.index(name)])
+
+    def get_stderr(self, name) -> float:
+        return float(self.stderr[self.names.index(name)])
+
+    def ci95(self, name) -> tuple:
+        v, s = self.get(name), self.get_stderr(name)
+        return (v - _Z95 * s, v + _Z95 * s)
+
+    @property
+    def k(self) -> float:
+        return self.get("k")
+
+    @property
+    def c(self) -> float:
+        return self.get("c")
+
+    def restoring_force(self, u_t, v_t):
+        """``k u + c v + f_joint(u)`` over one sampled period (time on the last axis)."""
+        return self.k * np.asarray(u_t) + self.c * np.asarray(v_t) + self.law.aft(u_t, jacobian=False)[0]
+
+    def first_harmonic(self, a):
+        """``(K(a), L(a))``: stiffness and loss stiffness of the model's first harmonic at amplitude ``a``."""
+        k_eq, k_loss = self.law.first_harmonic(a)
+        return self.k + k_eq, k_loss
+
+    def peak(self, force_amplitude):
+        """Peak of the frequency response at a force amplitude by first-harmonic balance.
+
+        See :func:`first_harmonic_peak`; returns ``(peak_frequency_hz, peak_q_max)``.
+        """
+        return first_harmonic_peak(self.k, self.c, self.law, force_amplitude)
+
+    def summary(self) -> dict:
+        return {
+            "law": self.law_name,
+            "parameters": {n: float(v) for n, v in zip(self.names, self.values)},
+            "stderr": {n: float(s) for n, s in zip(self.names, self.stderr)},
+            "ci95": {n: [float(v - _Z95 * s), float(v + _Z95 * s)] for n, v, s in zip(self.names, self.values, self.stderr)},
+            "units": dict(zip(self.names, self.units)),
+            "covariance": self.covariance.tolist(),
+            "joint_law": self.law.summary(),
+            "q_max": self.q_max.tolist(),
+            "frequency_hz": self.frequency_hz.tolist(),
+            "residual_rms": float(self.residual_rms),
+            "n_records": int(self.n_records),
+            "warnings": list(self.warnings),
+        }
+
+    def report(self) -> str:
+        lines = [f"hysteretic force-state mapping ({self.law_name}) over {self.n_records} records, "
+                 f"q_max {self.q_max.min():.4g} .. {self.q_max.max():.4g}, "
+                 f"weighted residual rms {self.residual_rms:.3g} (1 = noise)"]
+        for n, v, s, u in zip(self.names, self.values, self.stderr, self.units):
+            lo, hi = v - _Z95 * s, v + _Z95 * s
+            lines.append(f"  {n:>18} = {v:.6g} ± {s:.2g} {u}   95 % [{lo:.6g}, {hi:.6g}]")
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def first_harmonic_peak(k, c, law, force_amplitude):
+    """Peak ``(frequency_hz, q_max)`` of ``q'' + c q' + k q + f_joint(q) = Q cos(omega t)`` (first harmonic).
+
+    With the law's first-harmonic stiffness ``K(a) = k + k_eq(a)`` and loss ``L(a) = k_loss(a)``,
+    the response amplitude ``a`` at ``omega`` solves ``Q^2 = a^2 ((K - omega^2)^2 + (c omega + L)^2)``.
+    The peak is the largest ``a`` for which some ``omega`` solves it: ``a*`` with
+    ``min_omega a^2 (...) = Q^2``, found by a root in ``a`` (folds need no continuation).
+    """
+    Q = float(force_amplitude)
+
+    def best(a):
+        K, L = k + float(np.asarray(law.first_harmonic(a)[0])), float(np.asarray(law.first_harmonic(a)[1]))
+        w0 = math.sqrt(max(K, 1e-300))
+        res = optimize.minimize_scalar(lambda w: (K - w * w) ** 2 + (c * w + L) ** 2, bounds=(0.5 * w0, 1.5 * w0),
+                                       method="bounded", options={"xatol": 1e-12 * w0})
+        return a * a * res.fun - Q * Q, res.x
+
+    lo = 1e-12
+    hi = Q / max(k, 1e-300)
+    while best(hi)[0] < 0:
+        lo, hi = hi, hi * 2.0
+        if hi > 1e12:
+            raise IdentificationError(f"no peak found at force amplitude {Q:g}: the response grows without bound")
+    a = optimize.brentq(lambda x: best(x)[0], lo, hi, xtol=1e-15, rtol=1e-13)
+    return best(a)[1] / (2 * np.pi), a
+
+
+class HystereticForceStateMapping:
+    """Fit a hysteretic joint law to the restoring force of a preload's records (all levels at once).
+
+    Parameters
+    ----------
+    law : {"jenkins", "iwan4"}
+        The joint law: a Jenkins element (``kt``, ``Fs``) or Segalman's four-parameter Iwan
+        model (``K_T``, ``F_S``, ``chi``, ``beta``, evaluated on its discretisation).
+    n_time : int
+        Samples of the period at which the law's force is evaluated (``aft``).
+    n_sliders, phi_min_ratio : int, float
+        Discretisation of the four-parameter Iwan model (:func:`jointid.joints.discretize_iwan4`).
+    start : sequence of float, optional
+        Starting nonlinear parameters (Jenkins: ``log`` slip displacement; Iwan: ``log phi_max``,
+        ``chi``, ``beta``) instead of the coarse grid.
+
+    Attributes
+    ----------
+    result_ : HystereticFit
+    coef_, stderr_ : array
+        Physical parameters and their standard errors (``result_.names``).
+    """
+
+    def __init__(self, law="jenkins", n_time=512, n_sliders=60, phi_min_ratio=1e-4, start=None):
+        self.law = law
+        self.n_time = n_time
+        self.n_sliders = n_sliders
+        self.phi_min_ratio = phi_min_ratio
+        self.start = start
+
+    # --- model pieces -----------------------------------------------------------------
+    def _periods(self, recs):
+        n = int(self.n_time)
+        th = 2 * np.pi * np.arange(n) / n
+        Hm = max(r.H for r in recs)
+        E = _basis(th, 1.0, Hm)  # (n, 2Hm+1) at phase theta
+        U = np.array([E[:, : 2 * r.H + 1] @ r.d for r in recs])  # displacement over one period
+        P = E[:, 1:].T * (2.0 / n)  # projection on harmonics 1..Hm
+        return U, P, E
+
+    def _law_coeffs(self, shape, eta, U, P, recs, jac=False):
+        f, D = shape.unit(eta).aft(U, jacobian=jac)
+        out = f @ P.T  # (nr, 2Hm)
+        return out, D
+
+    def _design(self, shape, eta, U, P, recs, W):
+        fc, _ = self._law_coeffs(shape, eta, U, P, recs)
+        blocks, ys = [], []
+        for i, r in enumerate(recs):
+            m = 2 * r.H
+            X = np.column_stack([r.d[1:], r.v[1:], fc[i, :m]])
+            blocks.append(W[i] * (r.U @ X))
+            ys.append(W[i] * (r.U @ r.y))
+        return np.vstack(blocks), np.concatenate(ys)
+
+    def _projected(self, shape, eta, U, P, recs, W):
+        X, y = self._design(shape, eta, U, P, recs, W)
+        beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+        return y - X @ beta, beta
+
+    # --- fit --------------------------------------------------------------------------
+    def fit(self, signals_list, *, context=""):
+        if self.law not in _SHAPES:
+            raise IdentificationError(f"law must be one of {LAWS}, got {self.law!r}")
+        sigs = list(signals_list)
+        if len(sigs) < 3:
+            raise IdentificationError(f"{context}the hysteretic force-state mapping needs at least 3 records, got "
+                                      f"{len(sigs)}")
+        shape = _SHAPES[self.law](n_sliders=self.n_sliders, phi_min_ratio=self.phi_min_ratio)
+        recs = [_prepare(s, i) for i, s in enumerate(sigs)]
+        qmax = np.array([r.q_max for r in recs])
+        W = np.array([1.0 / math.sqrt(r.s_force**2 + r.s_accel**2) for r in recs])
+        U, P, E = self._periods(recs)
+        lo, hi = shape.bounds(qmax)
+
+        def proj(eta):
+            return self._projected(shape, np.asarray(eta, float), U, P, recs, W)[0]
+
+        if self.start is not None:
+            eta0 = np.clip(np.asarray(self.start, float), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        else:
+            cands = [np.clip(g, np.array(lo) + 1e-9, np.array(hi) - 1e-9) for g in shape.grid(qmax)]
+            costs = [float(np.sum(proj(g) ** 2)) for g in cands]
+            eta0 = cands[int(np.argmin(costs))]
+        sol = optimize.least_squares(proj, eta0, bounds=(lo, hi), method="trf", jac="3-point", x_scale=1.0,
+                                     xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400)
+        eta = np.asarray(sol.x, float)
+        res, beta = self._projected(shape, eta, U, P, recs, W)
+        p = np.concatenate([beta, eta])
+        warn = []
+        at_bound = [n for n, v, l, h in zip(shape.names, eta, lo, hi) if min(v - l, h - v) <= 1e-6 * (1 + abs(v))]
+        if at_bound:
+            warn.append(f"{context}{', '.join(at_bound)} at the edge of its range: the parameter is not resolved "
+                        "and its standard error does not hold")
+        if beta[2] <= 0:
+            warn.append(f"{context}the joint's force scale {shape.scale_name} = {beta[2]:.4g} is not positive: "
+                        f"the {self.law} law does not describe these records")
+            raise IdentificationError(warn[-1])
+        cov = self._sandwich(shape, p, U, P, E, recs, W)
+        names, vals, pcov, units = shape.physical(p, cov)
+        se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
+        dof = max(res.size - p.size, 1)
+        rms = float(np.sqrt(res @ res / dof))
+        for w in warn:
+            warnings.warn(w, IllConditionedWarning, stacklevel=2)
+        law = shape.law(beta[2], eta)
+        self.result_ = HystereticFit(self.law, names, vals, se, units, pcov, law, qmax,
+                                     np.array([r.frequency_hz for r in recs]), rms, len(recs), tuple(warn))
+        self.coef_ = vals
+        self.stderr_ = se
+        self.parameters_ = p
+        self.covariance_ = cov
+        return self
+
+    def _sandwich(self, shape, p, U, P, E, recs, W):
+        """Sandwich covariance of ``(k, c, scale, eta...)`` under the records' noise model."""
+        beta, eta = p[:3], p[3:]
+        ne = eta.size
+        fc, D = self._law_coeffs(shape, eta, U, P, recs, jac=True)
+        # columns of the nonlinear parameters: central differences of the projected law force
+        dF = []
+        for i in range(ne):
+            h = 1e-5 * max(1.0, abs(eta[i]))
+            e1, e2 = eta.copy(), eta.copy()
+            e1[i] += h
+            e2[i] -= h
+            dF.append((self._law_coeffs(shape, e1, U, P, recs)[0] - self._law_coeffs(shape, e2, U, P, recs)[0]) / (2 * h))
+        npar = p.size
+        JtJ = np.zeros((npar, npar))
+        meat = np.zeros((npar, npar))
+        for i, r in enumerate(recs):
+            m = 2 * r.H
+            J = np.column_stack([r.d[1:], r.v[1:], fc[i, :m]] + [beta[2] * d[i, :m] for d in dF])
+            J = W[i] * (r.U @ J)
+            JtJ += J.T @ J
+            # d(model coeffs)/d(acceleration coeffs), harmonics 1..H: k Ld + c Lv + scale * (P D E) Ld
+            G = P[:m] @ D[i] @ E[:, : m + 1]  # d law coeffs / d displacement coeffs
+            M = beta[0] * r.Ld[1:] + beta[1] * r.Lv[1:] + beta[2] * (G @ r.Ld)
+            M[:, 1:] += np.eye(m)  # y = F - a: the acceleration enters with -1 as well
+            S = r.s_force**2 * r.C[1:, 1:] + r.s_accel**2 * (M @ r.C @ M.T)
+            Ue = W[i] * r.U
+            Sr = Ue @ S @ Ue.T
+            meat += J.T @ Sr @ J
+        Hinv = np.linalg.pinv(JtJ)
+        return Hinv @ meat @ Hinv
