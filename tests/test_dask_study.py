@@ -40,9 +40,10 @@ def serial(tmp_path_factory):
 
 
 def _study_json(out):
-    """study.json without its run id (each run has its own)."""
+    """study.json without its run id (each run has its own) and its provenance (host, workers, times)."""
     d = json.loads((out / "study.json").read_text())
     assert d.pop("run_id")
+    assert d.pop("provenance")["plan_fingerprint"] == d["plan_fingerprint"]
     return d
 
 

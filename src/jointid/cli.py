@@ -205,6 +205,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder; campaigns already in its campaigns.jsonl are not run again")
     _add_parallel_options(p, "campaigns")
     p.add_argument("--no-report", action="store_true", help="skip report.html")
+    p.add_argument("--allow-version-mix", action="store_true",
+                   help="resume campaigns made by another jointid version (refused by default)")
     p.add_argument("--quiet", action="store_true", help="no progress and no table on stdout")
     return parser
 
@@ -366,7 +368,7 @@ def _study(args) -> int:
 
     plan = load_study_plan(args.plan)
     res = run_study(plan, args.out, jobs=args.jobs, scheduler=args.scheduler, progress=not args.quiet,
-                    report=not args.no_report)
+                    report=not args.no_report, allow_version_mix=args.allow_version_mix)
     if not args.quiet:
         print(res.report())
         print(f"\n{res.n_run} campaigns run, {len(res.campaigns) - res.n_run} already in {args.out}; "

@@ -361,6 +361,23 @@ def local_cluster(n_workers: int, allowed_failures: int = ALLOWED_FAILURES):
                         silence_logs=logging.ERROR)
 
 
+#: What the last :func:`map_tasks` call of this process ran on (set when it returns):
+#: ``executor`` ("in-process", "local cluster" or the scheduler's address), ``workers`` and
+#: ``worker_cpu_s`` (CPU seconds the workers' processes spent during the tasks).
+LAST_RUN: dict = {}
+
+
+def _worker_cpu():
+    return time.process_time()
+
+
+def _cpu_of_workers(client):
+    try:
+        return client.run(_worker_cpu)
+    except Exception:  # noqa: BLE001 - the times are information, never a reason to fail
+        return {}
+
+
 def _call(fn, args):
     return single_threaded(fn)(*args)
 
@@ -417,18 +434,18 @@ def map_tasks(fn, arglist, *, jobs=1, scheduler=None, client=None, progress=Fals
                 if on_result is not None:
                     on_result(i, results[i])
                 bar.update()
+            LAST_RUN.clear()
+            LAST_RUN.update(executor="in-process", workers=1, worker_cpu_s=0.0)
             return results
         if client is not None:
             if files is not None:
                 check_worker_files(client, files)
-            _gather(client, fn, arglist, results, bar, on_result, on_lost)
-            _run_on_workers(client, cleanup)
+            _on_cluster(client, "client", fn, arglist, results, bar, on_result, on_lost, cleanup)
         else:
             with dask_client(min(resolve_jobs(jobs), len(arglist)), scheduler) as cl:
                 if files is not None and scheduler is not None:
                     check_worker_files(cl, files)
-                _gather(cl, fn, arglist, results, bar, on_result, on_lost)
-                _run_on_workers(cl, cleanup)
+                _on_cluster(cl, scheduler or "local cluster", fn, arglist, results, bar, on_result, on_lost, cleanup)
         return results
     finally:
         bar.close()
@@ -479,6 +496,18 @@ def check_worker_files(client, paths):
                 f"({len(bad)} of {len(paths)} files differ); the workers read the files by the same path, so put the "
                 f"folder on a file system shared at the same path on every worker, or run without --scheduler; "
                 f"nothing was run")
+
+
+def _on_cluster(client, executor, fn, arglist, results, bar, on_result, on_lost, cleanup):
+    before = _cpu_of_workers(client)
+    _gather(client, fn, arglist, results, bar, on_result, on_lost)
+    after = _cpu_of_workers(client)
+    _run_on_workers(client, cleanup)
+    if executor == "client":
+        executor = getattr(getattr(client, "scheduler", None), "address", None) or "dask client"
+    LAST_RUN.clear()
+    LAST_RUN.update(executor=executor, workers=len(after),
+                    worker_cpu_s=float(sum(max(0.0, t - before.get(w, 0.0)) for w, t in after.items())))
 
 
 def _run_on_workers(client, fn):

@@ -711,6 +711,10 @@ class StudyResult:
             lines.append(statistics_table([s for s in self.statistics if s["grid_point"] == k]))
         for c in self.failed[:10]:
             lines.append(f"  failed: {c['error']}")
+        if getattr(self, "provenance", None):
+            from ..report.provenance_text import provenance_line
+
+            lines.append(provenance_line(self.provenance))
         return "\n".join(lines)
 
     def _repr_html_(self):
@@ -840,6 +844,20 @@ def check_study_folder(out, plan: StudyPlan | None = None) -> dict | None:
     return marker
 
 
+def _check_code_versions(path, done: dict, allow: bool) -> None:
+    """Refuse to resume campaigns made by other jointid code (lines of an earlier version, without
+    a ``code`` entry, are not checked)."""
+    from .provenance import code_fingerprint
+
+    here = code_fingerprint()
+    other = sorted({str(line.get("code")) for line in done.values() if line.get("code") not in (None, here)})
+    if other and not allow:
+        n = sum(1 for line in done.values() if line.get("code") not in (None, here))
+        raise ManifestError(f"{path}: {n} campaign(s) were made by other jointid code (code fingerprint "
+                            f"{', '.join(other)}; this jointid is {here}); resuming would mix versions in one study: "
+                            f"write to another folder, or resume with --allow-version-mix")
+
+
 def _move_ready(out: Path, ready: Path) -> None:
     """Put a committed final set in place: its files, then its marker (last: it says which set is
     in place); a final file of an earlier run that the set does not have (``report.html`` after
@@ -893,6 +911,8 @@ def _write_final_set(out: Path, result, run_id: str, report: bool) -> None:
     try:
         summary = result.summary()
         summary["run_id"] = run_id
+        if getattr(result, "provenance", None):  # who ran it, where, how long (not part of the results)
+            summary["provenance"] = result.provenance
         write_json(tmp / "study.json", summary)
         write_csv(tmp / "statistics.csv", list(result.statistics),
                   columns=list(result.statistics[0]) if result.statistics else ["grid_point", "parameter"])
@@ -912,7 +932,8 @@ def _write_final_set(out: Path, result, run_id: str, report: bool) -> None:
         raise
 
 
-def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=False, report=True) -> StudyResult:
+def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=False, report=True,
+              allow_version_mix=False) -> StudyResult:
     """Run (or resume) a study and write its results.
 
     Parameters
@@ -935,6 +956,9 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
         Show the progress.
     report : bool
         Write ``report.html`` (figures take a few seconds).
+    allow_version_mix : bool
+        Resume campaigns made by other jointid code (another code fingerprint,
+        :func:`jointid.app.provenance.code_fingerprint`); refused by default.
 
     Returns
     -------
@@ -954,7 +978,10 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
     from ..io.outputset import MARKER, marker_text, new_run_id
     from ..io.results import atomic_write
     from .parallel import map_tasks
+    from .provenance import RunClock, attach_provenance, code_fingerprint
 
+    clock = RunClock()
+    code = code_fingerprint()
     if not isinstance(plan, StudyPlan):
         plan = StudyPlan.from_mapping(plan) if isinstance(plan, dict) else load_study_plan(plan)
     out = Path(out_dir)
@@ -971,6 +998,7 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
         raise ManifestError(f"{path}: holds only a line cut short before it names its plan, in a folder without a "
                             f"study marker: which plan made it cannot be told; remove the file or write the study to "
                             f"another folder")
+    _check_code_versions(path, done, allow_version_mix)
     created = [p for p in (out, out / MARKER, path) if not p.exists()]
     out.mkdir(parents=True, exist_ok=True)
     if marker is None:
@@ -989,6 +1017,7 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
         with open(path, "a", encoding="utf-8") as fh:
 
             def append(_, line):
+                line["code"] = code  # the jointid code of the run that made the line (a resumed study checks it)
                 fh.write(json.dumps(line, allow_nan=False) + "\n")
                 fh.flush()
                 os.fsync(fh.fileno())
@@ -1026,6 +1055,7 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
     lost_lines = {line["index"]: line for line in new if line["index"] not in done}
     current = tuple(done.get(i) or lost_lines[i] for i in range(plan.n_campaigns))
     result = StudyResult(plan.name, plan, current, tuple(study_statistics(current)), n_run=len(todo))
+    attach_provenance(result, clock, plan_fingerprint=plan.fingerprint)
     run_id = new_run_id()
     try:
         _write_final_set(out, result, run_id, report)

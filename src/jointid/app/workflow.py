@@ -331,6 +331,13 @@ def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) 
     **kw
         Overrides of :class:`IdentifySettings` fields (``terms=...``, ``n_harmonics=...``).
     """
+    from .provenance import RunClock, attach_provenance
+
+    clock = RunClock()
+    return attach_provenance(_identify_campaign(campaign, settings, **kw), clock)
+
+
+def _identify_campaign(campaign, settings: IdentifySettings | None = None, **kw):
     if settings is None:
         settings = IdentifySettings(**kw)
     elif kw:

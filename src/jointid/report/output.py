@@ -107,12 +107,18 @@ def _write_set(result, out, run_id, figures, html) -> dict:
         return result.write_set(out, run_id, figures=bool(figures), html=html)
     summary = result.summary()
     summary["run_id"] = run_id
+    if getattr(result, "provenance", None):  # versions, host, workers, times (not results: not in summary())
+        summary["provenance"] = result.provenance
     text = result.report() + "\n"
     if flagged_lines(result):
         text += "\n" + "\n".join(flagged_lines(result)) + "\n"
     if misfit_text(summary):
         text += "\n" + misfit_text(summary) + "\n"
     text += f"\nrun id {run_id}\n"
+    if getattr(result, "provenance", None):
+        from .provenance_text import provenance_line
+
+        text += provenance_line(result.provenance) + "\n"
     paths = {
         "results": write_json(out / "results.json", summary),
         "records": write_csv(out / "records.csv", record_rows(result)),
@@ -135,8 +141,17 @@ def _write_set(result, out, run_id, figures, html) -> dict:
 
         write_html(paths["html"], f"jointid: {result.name}", campaign_sections(result, figs, summary),
                    intro=f"{len(result.records)} records, {len(result.failed)} failed, {n_flagged} flagged.",
-                   meta=page_meta(run_id))
+                   meta=_with_provenance(page_meta(run_id), result))
     return paths
+
+
+def _with_provenance(meta, result):
+    prov = getattr(result, "provenance", None)
+    if prov:
+        from .provenance_text import provenance_line
+
+        meta = {**meta, "run": provenance_line(prov)}
+    return meta
 
 
 def misfit_text(summary) -> str:

@@ -162,6 +162,10 @@ def study_sections(result) -> list:
         "covers the truth in 95 % of the campaigns; the coverage interval shown is Wilson's 95 % interval "
         "of that fraction. Relative bias and RMSE are relative to |truth|.",
     ])
+    if getattr(result, "provenance", None):
+        from .provenance_text import provenance_line
+
+        intro.paragraphs.append(provenance_line(result.provenance) + ".")
     intro.tables.append(("drawn per campaign", [{"path": p, "distribution": distribution_text(s)}
                                                 for p, s in plan.vary], None))
     sections = [intro]
