@@ -18,7 +18,7 @@ from jointid.simulate.synth import synthesize_record
 pytestmark = pytest.mark.filterwarnings("ignore::jointid.errors.JointidWarning")
 
 
-def _campaign(folder, bad_ringdown=False):
+def _campaign(folder, bad_ringdown=False, label=None):
     """Seed model in modal coordinates: stepped sine at two levels and one free decay."""
     m = seed_model()
     rng = np.random.default_rng(0)
@@ -29,7 +29,8 @@ def _campaign(folder, bad_ringdown=False):
             t, Q, qdd = synthesize_record(s, fs=2000.0, duration=1.0, noise=0.005, rng=rng)
             rel = f"records/F{F:g}_{i}.csv"
             write_csv_record(folder / rel, t, {"force": Q, "accel": qdd})
-            records.append({"file": rel, "frequency_hz": w / (2 * np.pi), "force_level": F, "preload": 1})
+            level = F if label is None else label(F)
+            records.append({"file": rel, "frequency_hz": w / (2 * np.pi), "force_level": level, "preload": 1})
     def rhs(t, y):
         return [y[1], -0.08 * y[1] - 170.0**2 * y[0] + 5e6 * y[0] ** 3]
 
@@ -39,7 +40,8 @@ def _campaign(folder, bad_ringdown=False):
     if bad_ringdown:
         acc[100] = np.nan
     write_csv_record(folder / "ringdown/R.csv", t, {"force": np.zeros_like(t), "accel": acc})
-    records.append({"file": "ringdown/R.csv", "force_level": 2.0, "preload": 1, "excitation": "ringdown"})
+    records.append({"file": "ringdown/R.csv", "force_level": 2.0 if label is None else label(2.0), "preload": 1,
+                    "excitation": "ringdown"})
     write_campaign(folder, "backbone test", records)
     return m
 
@@ -84,6 +86,15 @@ def test_bad_ringdown_record_does_not_lose_the_backbones(tmp_path):
     assert p.stepped is not None and not p.ringdown
     (key, msg), = p.errors.items()
     assert "ringdown/R.csv" in msg and "accel" in msg
+
+
+def test_force_levels_given_as_text_labels_keep_the_backbones(tmp_path):
+    """A manifest may name its levels in text ("0.5 N"): the backbones group by the label, not by a number."""
+    _campaign(tmp_path, label=lambda F: f"{F:g} N")
+    bb = identify_campaign(tmp_path, repredict=False).backbones
+    assert bb.error is None, bb.error
+    levels = bb[1].phase_resonance.meta["force_level"]
+    assert levels and set(levels) <= {"0.5 N", "2 N"}
 
 
 def test_cli_backbone_draws_a_saved_result(identified, tmp_path):

@@ -569,9 +569,16 @@ def equivalent_linearisation(signals_list, *, force_level=None, force_gain=1.0, 
     meta = {"frequency_hz": [float(f) for f in freqs], "phase": phases, "k_eq": keqs, "D": Ds,
             "force_gain": used_gain}
     if force_level is not None:
-        meta["force_level"] = [None if f is None else float(f) for f in force_level]
+        meta["force_level"] = [_level_key(f) for f in force_level]
     return Backbone(np.array(a), np.array(w_eq), np.array(z), np.array(w_se), np.array(z_se), "stepped-sine",
                     np.array(a_se), label, meta)
+
+
+def _level_key(level):
+    """A force level as a JSON-safe grouping key: a number, or the manifest's text label as it is."""
+    if level is None or isinstance(level, str):
+        return level
+    return float(level)
 
 
 def phase_resonance_points(points: Backbone, force_level=None, label="") -> Backbone:
@@ -599,9 +606,10 @@ def phase_resonance_points(points: Backbone, force_level=None, label="") -> Back
     k = np.asarray(points.meta["k_eq"], float)
     D = np.asarray(points.meta["D"], float)
     levels = force_level if force_level is not None else points.meta.get("force_level", [None] * f.size)
-    levels = [None if v is None else float(v) for v in levels]
+    levels = [_level_key(v) for v in levels]
     out = {"a": [], "w": [], "z": [], "ase": [], "wse": [], "zse": [], "level": []}
-    for lev in sorted(set(levels), key=lambda v: (v is None, v)):
+    numbers_first = lambda v: (v is None, isinstance(v, str), 0.0 if isinstance(v, str) or v is None else v, str(v))  # noqa: E731
+    for lev in sorted(set(levels), key=numbers_first):
         idx = np.array([i for i, v in enumerate(levels) if v == lev], int)
         idx = idx[np.argsort(f[idx])]
         w = 2 * np.pi * f[idx]
