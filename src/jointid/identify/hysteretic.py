@@ -49,6 +49,8 @@ LAWS = ("jenkins", "iwan4")
 #: Harmonics used to estimate a channel's noise level (fewer when the sampling does not allow them).
 NOISE_HARMONICS = 25
 _Z95 = 1.959963984540054
+#: Local searches started from the coarse grid's best distinct points.
+N_STARTS = 3
 
 
 def _basis(tau, omega, n_harmonics, dc=True):
@@ -165,11 +167,13 @@ class _Iwan4Shape:
         return [math.log(qmax.min() * 1e-2), -0.95, 0.0], [math.log(qmax.max() * 20.0), 0.95, 20.0]
 
     def grid(self, qmax):
+        # phi_max inside the measured amplitudes (where the delta element's slip shows, beta is seen) and one
+        # value beyond them (micro-slip only); starting beyond the data, beta has no gradient and the search stalls
         out = []
-        for e in np.linspace(math.log(qmax.min() / 5), math.log(qmax.max() * 3), 10):
-            for chi in (-0.7, -0.4, -0.1, 0.3):
-                for beta in (0.0, 0.5, 2.0):
-                    out.append(np.array([e, chi, beta]))
+        for pm in list(np.geomspace(qmax.min(), qmax.max(), 6)) + [3.0 * qmax.max()]:
+            for chi in (-0.6, -0.2, 0.3):
+                for beta in (0.3, 1.5):
+                    out.append(np.array([math.log(pm), chi, beta]))
         return out
 
     def physical(self, p, cov):
@@ -352,8 +356,8 @@ class HystereticForceStateMapping:
         self.start = start
 
     # --- model pieces -----------------------------------------------------------------
-    def _periods(self, recs):
-        n = int(self.n_time)
+    def _periods(self, recs, n=None):
+        n = int(self.n_time if n is None else n)
         th = 2 * np.pi * np.arange(n) / n
         Hm = max(r.H for r in recs)
         E = _basis(th, 1.0, Hm)  # (n, 2Hm+1) at phase theta
@@ -399,14 +403,28 @@ class HystereticForceStateMapping:
         def proj(eta):
             return self._projected(shape, np.asarray(eta, float), U, P, recs, W)[0]
 
+        lo_a, hi_a = np.array(lo) + 1e-9, np.array(hi) - 1e-9
+        opts = dict(bounds=(lo, hi), method="trf", jac="3-point", x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
         if self.start is not None:
-            eta0 = np.clip(np.asarray(self.start, float), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        else:
-            cands = [np.clip(g, np.array(lo) + 1e-9, np.array(hi) - 1e-9) for g in shape.grid(qmax)]
-            costs = [float(np.sum(proj(g) ** 2)) for g in cands]
-            eta0 = cands[int(np.argmin(costs))]
-        sol = optimize.least_squares(proj, eta0, bounds=(lo, hi), method="trf", jac="3-point", x_scale=1.0,
-                                     xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400)
+            eta0 = np.clip(np.asarray(self.start, float), lo_a, hi_a)
+        else:  # coarse grid and local searches on a short period, then the full period from the best of them
+            Uc, Pc, _ = self._periods(recs, min(128, int(self.n_time)))
+
+            def coarse(eta):
+                return self._projected(shape, np.asarray(eta, float), Uc, Pc, recs, W)[0]
+
+            cands = [np.clip(g, lo_a, hi_a) for g in shape.grid(qmax)]
+            costs = np.array([float(np.sum(coarse(g) ** 2)) for g in cands])
+            starts = []
+            for i in np.argsort(costs):
+                if all(np.max(np.abs(cands[i] - s0)) > 0.6 for s0 in starts):
+                    starts.append(cands[i])
+                if len(starts) == N_STARTS:
+                    break
+            best = min((optimize.least_squares(coarse, s0, max_nfev=200, **opts) for s0 in starts),
+                       key=lambda r: r.cost)
+            eta0 = np.clip(best.x, lo_a, hi_a)
+        sol = optimize.least_squares(proj, eta0, max_nfev=400, **opts)
         eta = np.asarray(sol.x, float)
         res, beta = self._projected(shape, eta, U, P, recs, W)
         p = np.concatenate([beta, eta])
