@@ -36,6 +36,7 @@ from ..errors import ConvergenceError, ConvergenceWarning, StructureError
 from ..io.channels import Channels
 from ..modal.analysis import ModalModel, modal_analysis
 from ..modal.beam import SEED_GEOMETRY, JointedBeam, seed_bolted_beam
+from ..numerics.aft import aft_basis
 from ..numerics.peaks import parabolic_peak, refine_peak  # noqa: F401 (refine_peak re-exported: jointid.rig.rig.refine_peak)
 from .iwan import IwanParameters, JointLaw
 from .reduced import JOINT_DIRECTIONS, ReducedModel, RigSteadyState, sample_series, settle_check
@@ -498,13 +499,12 @@ class VirtualRig:
             ``source = "rig"``, zero standard errors.
         """
         from ..identify.backbone import Backbone
-        from .reduced import _aft_basis
 
         m = self.model
         H = int(n_harmonics)
         n = 2 * H + 1
         nm, nj = m.n_modes, m.n_joints
-        E, P = _aft_basis(H, int(n_time))
+        E, _, P = aft_basis(H, int(n_time), "F")  # the layout of ReducedModel.steady_state
         kk = np.zeros(n)
         kk[1::2] = kk[2::2] = np.arange(1, H + 1)
         Psi = m.joint_shapes
