@@ -418,7 +418,8 @@ class PooledGainForceStateMapping:
                             else 1.0 for R, s in zip(Rs, sigs)])
         alpha_covs = [alpha_covariance(s, sc) for s, (_, sc) in zip(sigs, passes)]
         grams = [R.T @ R for R in Rs]
-        eiv = [eiv_gram(lib, s, C) for s, C in zip(sigs, alpha_covs)]
+        moments = [error_moments(lib, s, C) for s, C in zip(sigs, alpha_covs)]
+        eiv = [eiv_gram(lib, s, C, K) for s, C, K in zip(sigs, alpha_covs, moments)]
         corrected = []
         for M, E in zip(grams, eiv):
             Mc = M.copy()
@@ -432,7 +433,8 @@ class PooledGainForceStateMapping:
             warn.append(f"{context}the errors-in-variables correction leaves the pooled normal matrix without "
                         f"a positive definite part (the fitted harmonics are dominated by their noise); plain "
                         f"least squares is used and the gain may be biased")
-        cov = _sandwich_covariance(lib, [sc for _, sc in passes], alpha_covs, corrected, coef, weights, placement, sigs)
+        cov = _sandwich_covariance(lib, [sc for _, sc in passes], alpha_covs, corrected, coef, weights, placement, sigs,
+                                   moments, Rs)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         n_total = int(sum(s.t.size for s in sigs))
         if not np.isfinite(cond) or cond > self.cond_limit:
@@ -540,7 +542,19 @@ def _whitener(alpha_cov) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))
 
 
-def eiv_gram(lib, signals, alpha_cov) -> np.ndarray:
+def error_moments(lib, signals, alpha_cov) -> np.ndarray:
+    """``K[j, i, k, l] = sum_t (L^T g_j(t))_i (L^T g_k(t))_l`` (``d alpha = L z``, see :func:`eiv_gram`):
+    the one pass over the record that both :func:`eiv_gram` and :func:`eiv_score_covariance` need."""
+    p, L = len(lib) + 1, _whitener(alpha_cov)
+    r = L.shape[1]
+    K = np.zeros((p * r, p * r))
+    for Gm in _error_rows(lib, signals, L):
+        G2 = Gm.reshape(Gm.shape[0], p * r)
+        K += G2.T @ G2
+    return K.reshape(p, r, p, r)
+
+
+def eiv_gram(lib, signals, alpha_cov, moments=None) -> np.ndarray:
     """Expected Gram of the regressors' errors, ``E[dX^T dX]``, of the columns ``[q''_fit, terms...]``.
 
     The regressors are built from the fitted acceleration coefficients ``alpha``, whose
@@ -558,14 +572,12 @@ def eiv_gram(lib, signals, alpha_cov) -> np.ndarray:
     second-order terms (the curvature of nonlinear terms) are of the relative size of the
     noise variance to the fundamental and are left out.
     """
-    p = len(lib) + 1
-    out = np.zeros((p, p))
-    for Gm in _error_rows(lib, signals, _whitener(alpha_cov)):
-        out += np.tensordot(Gm, Gm, axes=([0, 2], [0, 2]))
+    K = error_moments(lib, signals, alpha_cov) if moments is None else moments
+    out = np.einsum("jiki->jk", K)
     return 0.5 * (out + out.T)
 
 
-def eiv_score_covariance(lib, signals, alpha_cov, theta) -> np.ndarray:
+def eiv_score_covariance(lib, signals, alpha_cov, theta, moments=None) -> np.ndarray:
     """Second-order part of the score covariance that the plug-in noise model leaves out.
 
     The corrected score of a record is ``X^T eps - X^T dX theta + dX^T eps - (dX^T dX - E) theta``
@@ -580,21 +592,18 @@ def eiv_score_covariance(lib, signals, alpha_cov, theta) -> np.ndarray:
     separate the inertia from the stiffness are of the size of their noise it is of the size
     of the first-order term in that direction.
     """
-    p = len(lib) + 1
-    theta = np.asarray(theta, float)
-    L = _whitener(alpha_cov)
-    A = np.zeros((p, L.shape[1], L.shape[1]))
-    for Gm in _error_rows(lib, signals, L):
-        A += np.einsum("tji,tk->jik", Gm, np.einsum("tjr,j->tr", Gm, theta))
+    K = error_moments(lib, signals, alpha_cov) if moments is None else moments
+    A = np.einsum("jiul,u->jil", K, np.asarray(theta, float))
     out = np.einsum("jab,kba->jk", A, A)
     return 0.5 * (out + out.T)
 
 
-def frequency_score(lib, signals, scores, theta) -> np.ndarray | None:
+def frequency_score(lib, signals, scores, theta, R=None) -> np.ndarray | None:
     """``d(score)/d omega`` of a record whose excitation frequency was estimated (``None`` if given).
 
     The score ``X^T (V - X theta)`` at fixed ``theta`` is evaluated with the acceleration
-    fitted at ``omega +- h`` (same time origin) and differenced.  A wrong frequency moves
+    fitted at ``omega + h`` (same time origin) and differenced with its value at ``omega``
+    (from the record's factor ``R`` when given).  A wrong frequency moves
     ``q = -q''/omega^2`` against the inertia column, i.e. each record's apparent stiffness
     ``theta_q - m omega_r^2``; across the records of a group that is an error of the gain,
     so the frequency estimate's own variance (:attr:`RecordScores.omega_variance`) enters
@@ -606,17 +615,19 @@ def frequency_score(lib, signals, scores, theta) -> np.ndarray | None:
     h = max(1e-7 * omega, 0.1 * float(np.sqrt(scores.omega_variance)))
     nt = len(lib) + 1
     acc = signals.acceleration
+    if R is None:
+        R, _ = record_pass(lib, signals, inertia=True)
+    series, _ = fit_harmonics(signals.t, signals.accel_measured, omega + h, acc.n_harmonics, t0=acc.t0)
+    shifted = replace(signals, acceleration=series, frequency_hz=(omega + h) / (2 * np.pi), frequency_given=True)
     f = []
-    for w in (omega + h, omega - h):
-        series, _ = fit_harmonics(signals.t, signals.accel_measured, w, acc.n_harmonics, t0=acc.t0)
-        shifted = replace(signals, acceleration=series, frequency_hz=w / (2 * np.pi), frequency_given=True)
-        R, _ = record_pass(lib, shifted, inertia=True)
-        M = R.T @ R
+    for Rw in (record_pass(lib, shifted, inertia=True)[0], R):
+        M = Rw.T @ Rw
         f.append(M[:nt, nt] - M[:nt, :nt] @ theta)
-    return (f[0] - f[1]) / (2 * h)
+    return (f[0] - f[1]) / h
 
 
-def _sandwich_covariance(lib, scores, alpha_covs, grams, coef, weights, placement, signals=None):
+def _sandwich_covariance(lib, scores, alpha_covs, grams, coef, weights, placement, signals=None, moments=None,
+                         factors=None):
     """Covariance of the pooled gain fit under the noise model of :mod:`jointid.identify.uncertainty`.
 
     The excitation noise enters ``V`` directly; the response noise enters through the
@@ -629,13 +640,15 @@ def _sandwich_covariance(lib, scores, alpha_covs, grams, coef, weights, placemen
     P = coef.size
     nt = len(lib) + 1
     A, meat = np.zeros((P, P)), np.zeros((P, P))
-    for sc, C, M, w, cols, sig in zip(scores, alpha_covs, grams, weights, placement, signals or [None] * len(scores)):
+    n = len(scores)
+    for sc, C, M, w, cols, sig, K, R in zip(scores, alpha_covs, grams, weights, placement, signals or [None] * n,
+                                            moments or [None] * n, factors or [None] * n):
         theta = coef[cols]
         S = sc.score_terms(theta)
         V = sc.sigma_force**2 * sc.gram + S @ C @ S.T
         if sig is not None:
-            V = V + eiv_score_covariance(lib, sig, C, theta)  # second order in the regressors' error
-            u = frequency_score(lib, sig, sc, theta)
+            V = V + eiv_score_covariance(lib, sig, C, theta, K)  # second order in the regressors' error
+            u = frequency_score(lib, sig, sc, theta, R)
             if u is not None:  # the frequency estimate's own error
                 V = V + sc.omega_variance * np.outer(u, u)
         idx = np.ix_(cols, cols)

@@ -64,6 +64,8 @@ TRANSIENT_FLOOR = 0.02
 MIN_EXPLAINED = 0.5
 #: Residual z-score (robust) above which a sample is a spike.
 SPIKE_Z = 10.0
+#: Standard errors of the trend's slope allowed where :func:`trend_outliers` extrapolates it.
+SLOPE_Z = 3.0
 #: Clipping: share of samples at the extremes, and how many times the next level's count.
 CLIP_FRACTION = 0.005
 CLIP_RATIO = 4.0
@@ -385,13 +387,17 @@ def _theil_sen(lx, ly):
     return slope, float(np.median(ly - slope * lx))
 
 
-def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60, stderr=None) -> dict:
+def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60, stderr=None, _log_se=None) -> dict:
     """Members of a group far off the group's power-law trend ``y ~ x^p``.
 
     A straight line through ``(log x, log y)`` of the other members is fitted robustly
     (Theil-Sen: the median of the pairwise slopes, then the median intercept) and a member
     whose ``y`` is off that line by more than ``factor`` (and by more than 6 robust standard
-    deviations of the others' residuals) is returned.  Used for the damping coefficient
+    deviations of the others' residuals) is returned.  Beyond the others' range of ``x`` the
+    line is an extrapolation: its uncertainty there, ``SLOPE_Z`` standard errors of the slope
+    times the distance, is taken off the residual first (the resonant record of a group often
+    has ten times the others' amplitude, and their slope is poorly known when they are few
+    and noisy).  Used for the damping coefficient
     against the amplitude: ``c`` changes with ``q_max`` along the damping law, but a record
     in other units falls off that law.  Groups of more than ``max_pairs_n`` members use one
     line through all of them (one outlier cannot move it).
@@ -430,29 +436,46 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
         out = {}
         if len(resolved) >= min_records:
             out = trend_outliers(x, {k: y[k] for k in resolved}, factor=factor, min_records=min_records,
-                                 max_pairs_n=max_pairs_n)
+                                 max_pairs_n=max_pairs_n, _log_se={k: se[k] / y[k] for k in resolved})
         return {k: v for k, v in out.items() if abs(y[k] - v[1]) > Z_LIMIT * se[k]}
     n = len(keys)
     if n < min_records:
         return {}
     lx = np.log([x[k] for k in keys])
     ly = np.log([y[k] for k in keys])
+    lse = np.array([(_log_se or {}).get(k, 0.0) for k in keys])
+    order = np.sort(lx)
+
+    def beyond(m, slope, icpt, mad, ox, ose):
+        """Residual of member ``m`` against the line, less the line's own uncertainty where it is
+        extrapolated beyond the others' range of ``x`` (``SLOPE_Z`` standard errors of the slope,
+        from the others' scatter about it or their own standard errors, whichever is larger)."""
+        lo, hi = (order[1], order[-1]) if lx[m] == order[0] else (order[0], order[-2] if lx[m] == order[-1] else order[-1])
+        d = abs(lx[m] - min(max(lx[m], lo), hi))
+        r = ly[m] - slope * lx[m] - icpt
+        sxx = float(np.sum((ox - ox.mean()) ** 2))
+        scatter = max(mad, float(np.sqrt(np.mean(ose**2))) if ose.size else 0.0)
+        s_slope = scatter / np.sqrt(sxx) if sxx > 0 else np.inf
+        band = SLOPE_Z * s_slope * d if d > 0 else 0.0
+        return float(np.sign(r) * max(abs(r) - band, 0.0)), r, mad
+
     if n > max_pairs_n:
         sub = np.linspace(0, n - 1, max_pairs_n).astype(int)  # the line from a spread subset
         slope, icpt = _theil_sen(lx[sub], ly[sub])
         r_all = ly - slope * lx - icpt
         mad = 1.4826 * float(np.median(np.abs(r_all)))
-        fits = [(r_all[m], mad) for m in range(n)]
+        fits = [beyond(m, slope, icpt, mad, lx, lse) for m in range(n)]
     else:
         fits = []
         for m in range(n):
             others = np.arange(n) != m
             slope, icpt = _theil_sen(lx[others], ly[others])
             r = ly[others] - slope * lx[others] - icpt
-            fits.append((ly[m] - slope * lx[m] - icpt, 1.4826 * float(np.median(np.abs(r)))))
+            fits.append(beyond(m, slope, icpt, 1.4826 * float(np.median(np.abs(r))), lx[others], lse[others]))
     below, above = (factor, factor) if np.isscalar(factor) else factor
     out = {}
-    for k, (rk, mad) in zip(keys, fits):
+    for k, (rk, r_line, mad) in zip(keys, fits):
         if abs(rk) > max(np.log(below if rk < 0 else above), Z_LIMIT * mad):
+            rk = r_line
             out[k] = (float(np.exp(rk)), float(y[k] / np.exp(rk)))
     return out
