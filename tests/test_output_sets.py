@@ -233,3 +233,58 @@ def test_other_commands_do_not_write_into_an_output_set(campaign, tmp_path, caps
     _refused(["simulate", cfg, "--out", res], capsys, "identify output set")
     _refused(["demo", "--out", res, "--quiet"], capsys, "identify output set")
     assert _tree(res) == before
+
+
+# ----------------------------------------------------------------------------- the demo's set, written in place
+def _fake_demo(monkeypatch, *, fail=False, name="a.txt"):
+    """run_demo with its work replaced by writing one file (or failing half way)."""
+    import jointid.app.demo as demo
+
+    def work(out, progress, seed, settings, figures, run_id):
+        (out / "campaigns").mkdir()
+        (out / "campaigns" / name).write_text(run_id)
+        if fail:
+            raise RuntimeError("the rig failed")
+        return run_id
+
+    monkeypatch.setattr(demo, "_run_demo", work)
+    return demo.run_demo
+
+
+def test_demo_set_replaces_its_own_earlier_set_and_refuses_other_files(tmp_path, monkeypatch):
+    out = tmp_path / "demo-out"
+    first = _fake_demo(monkeypatch, name="first.txt")(out)
+    assert read_marker(out)["kind"] == "demo" and read_marker(out)["files"] == ["campaigns/first.txt"]
+    second = _fake_demo(monkeypatch, name="second.txt")(out)
+    assert second != first and sorted(_tree(out)) == [MARKER, "campaigns/second.txt"]  # no file of the first run
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(OutputError, match="did not write"):
+        _fake_demo(monkeypatch)(tmp_path / "mine")
+    assert _tree(tmp_path / "mine") == {"notes.txt": b"keep"}
+
+
+def test_demo_that_fails_puts_the_earlier_set_back(tmp_path, monkeypatch):
+    out = tmp_path / "demo-out"
+    _fake_demo(monkeypatch, name="good.txt")(out)
+    before = _tree(out)
+    with pytest.raises(RuntimeError, match="rig failed"):
+        _fake_demo(monkeypatch, fail=True, name="half.txt")(out)
+    assert _tree(out) == before and not list(tmp_path.glob(".demo-out.*"))
+
+
+def test_demo_killed_midway_is_undone_by_the_next_run(tmp_path, monkeypatch):
+    """A killed writer leaves ``state=writing`` with its pid; the next run restores the earlier set."""
+    from jointid.io.outputset import marker_text, remove_leftovers
+
+    out = tmp_path / "demo-out"
+    _fake_demo(monkeypatch, name="good.txt")(out)
+    before = _tree(out)
+    dead_pid = 2**22 + 12345  # above the kernel's pid limit: never a live process
+    prev = tmp_path / f".demo-out.prev.{dead_pid}-r1.tmp"
+    out.rename(prev)
+    out.mkdir()
+    (out / "half.txt").write_text("partial")
+    (out / MARKER).write_text(marker_text("r1", "demo", (), state="writing", pid=dead_pid))
+    remove_leftovers(out)
+    assert _tree(out) == before and not prev.exists()

@@ -507,7 +507,9 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     ----------
     out_dir : path
         Output folder: ``campaigns/preload_<p>/`` (the rig's campaigns), ``figures/``,
-        ``report.html`` and ``results.json``.
+        ``report.html`` and ``results.json``, written as one output set (kind ``demo``): an
+        earlier demo set there is replaced only once the new one is complete, and comes back
+        if the run fails or is interrupted; a folder holding anything else is refused.
     progress : bool
         Show progress bars (tqdm) on the long steps.
     seed : int
@@ -520,15 +522,17 @@ def run_demo(out_dir, progress: bool = True, seed: int = 0, settings: DemoSettin
     -------
     DemoResult
     """
+    from ..io.outputset import new_run_id, output_set_in_place
+
+    run_id = new_run_id()
+    with output_set_in_place(out_dir, run_id, kind="demo") as out:  # the campaigns' files record their paths
+        return _run_demo(out, progress, seed, settings or DemoSettings(), figures, run_id)
+
+
+def _run_demo(out: Path, progress, seed, settings: DemoSettings, figures, run_id) -> DemoResult:
     from .parallel import progress_bar
 
     t_start = time.perf_counter()
-    from ..report.output import new_run_id
-
-    run_id = new_run_id()
-    settings = settings or DemoSettings()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     timings = {}
     rngs = np.random.default_rng(seed).spawn(len(settings.preloads))
     n_steps = len(settings.preloads) * (2 + len(settings.plan.force_levels)) + 2

@@ -14,6 +14,10 @@ what it did not create:
   replaced; a folder holding anything else (the user's files, a campaign, another kind of
   set) is refused with :class:`~jointid.errors.OutputError` before any work
   (:func:`check_output_folder`).
+* A set whose files record their own paths (the demo's campaigns) is written in place
+  (:func:`output_set_in_place`): the previous set waits beside it as
+  ``.<name>.prev.<pid>-<run id>.tmp`` and comes back if the run fails, is interrupted or is
+  killed (the next run restores it); the marker says ``state=writing`` until the set is complete.
 * The output folder is never an input (a campaign, a study plan, an import's data folder)
   nor a folder that holds one: replacing it would destroy the input.
 """
@@ -34,13 +38,14 @@ from .results import MARKER, atomic_write
 from .results import check_output_folder as _check_writable
 
 __all__ = ["MARKER", "new_run_id", "read_marker", "marker_text", "check_output_folder", "check_command_output",
-           "output_set", "deferred_interrupt", "pid_alive", "remove_leftovers", "KINDS"]
+           "output_set", "output_set_in_place", "deferred_interrupt", "pid_alive", "remove_leftovers", "KINDS"]
 
 #: Kinds of output set (the ``kind=`` line of the marker).
-KINDS = ("identify", "import", "study")
+KINDS = ("identify", "import", "study", "demo")
 
 #: Commands whose output folder is an output set, and how: ``(kind, replaced as a whole)``.
-_COMMANDS = {"identify": ("identify", True), "import": ("import", True), "study": ("study", False)}
+_COMMANDS = {"identify": ("identify", True), "import": ("import", True), "study": ("study", False),
+             "demo": ("demo", True)}
 
 
 def new_run_id() -> str:
@@ -245,7 +250,16 @@ def remove_leftovers(out) -> None:
             continue
         if not pid_alive(pid):
             dead.append((stage, p))
+    writing = read_marker(out) if out.is_dir() else None
+    if writing is not None and writing.get("state") == "writing" and not pid_alive(int(writing.get("pid", 0) or 0)):
+        # an in-place set whose process is gone: incomplete, jointid's own; the previous set (if any) comes back
+        shutil.rmtree(out, ignore_errors=True)
+        for stage, p in dead:
+            if stage == "prev" and not out.exists():
+                os.replace(p, out)
     for stage, p in dead:
+        if not p.exists():
+            continue
         # killed between moving the old set aside and the new one in: the new set is complete
         # (its marker is written last), so it is put in place rather than lost with the old one
         if stage == "new" and not out.exists() and not out.is_symlink() and read_marker(p) is not None \
@@ -318,3 +332,36 @@ def output_set(out, run_id=None, kind="identify", inputs=()):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+@contextlib.contextmanager
+def output_set_in_place(out, run_id=None, kind="demo", inputs=()):
+    """Write a set directly in ``out`` (for files that record their own paths), as a whole.
+
+    Yields ``out``.  The checks are those of :func:`output_set`.  An earlier set of the same
+    kind is moved aside first and removed once the new set is complete (its marker written
+    last); on any error or interrupt the new files are removed and the earlier set is put
+    back.  A run killed midway leaves a marker with ``state=writing`` and its process id: the
+    next run on ``out`` removes that set and restores the earlier one.
+    """
+    out = Path(out)
+    run_id = run_id or new_run_id()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    remove_leftovers(out)
+    check_output_folder(out, kind, inputs)
+    prev = out.parent / f".{out.name}.prev.{os.getpid()}-{run_id}.tmp"
+    with deferred_interrupt():
+        if out.exists():
+            os.replace(out, prev)
+        out.mkdir()
+        atomic_write(out / MARKER, marker_text(run_id, kind, (), state="writing", pid=os.getpid()))
+    try:
+        yield out
+        atomic_write(out / MARKER, marker_text(run_id, kind, _files_of(out)))
+    except BaseException:
+        with deferred_interrupt():
+            shutil.rmtree(out, ignore_errors=True)
+            if prev.exists():
+                os.replace(prev, out)
+        raise
+    shutil.rmtree(prev, ignore_errors=True)
