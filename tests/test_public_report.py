@@ -27,7 +27,24 @@ def test_public_data_writes_a_self_contained_report(tmp_path):
     assert "Silverbox" not in page  # only the examples that ran
     assert page.count("data:image/png;base64,") == 2
     assert "<img" in page and "src='http" not in page and 'src="http' not in page and "<script" not in page
-    assert {p.name for p in out.iterdir()} == {"report.html", "results.json", "unesp.png", "f16.png"}
+    assert {p.name for p in out.iterdir()} == {"report.html", "results.json", "unesp.png", "f16.png", ".jointid-run"}
     # tables of numbers, not a text dump: the per-dwell table with its units
     assert "<table" in page and "tip amplitude q_max [mm]" in page and "c/m [1/s]" in page
     assert "leads the voltage" in page  # the delay's sign said in words
+
+
+@pytest.mark.skipif(not (DATA / "silverbox_multilevel_noel").exists(), reason="public data sets not found in ../shared/data")
+def test_public_data_output_is_one_set_and_never_mixes_with_other_files(tmp_path, capsys):
+    from jointid.io.outputset import read_marker
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    assert main(["public-data", "--out", str(mine), "--only", "silverbox"]) == 2
+    assert "did not write" in capsys.readouterr().err and [p.name for p in mine.iterdir()] == ["notes.txt"]
+    out = tmp_path / "pd"
+    for only in ("silverbox", "silverbox"):  # a second run replaces its own earlier set
+        assert main(["public-data", "--out", str(out), "--only", only]) == 0
+    marker = read_marker(out)
+    assert marker["kind"] == "public-data" and set(marker["files"]) == {"report.html", "results.json", "silverbox.png"}
+    assert not list(tmp_path.glob(".pd.*"))

@@ -730,9 +730,17 @@ def main(argv=None) -> int:
     p.add_argument("--only", choices=("silverbox", "benchmark", "unesp", "f16", "brb"), action="append",
                    help="run only these examples (repeatable)")
     args = p.parse_args(argv)
-    from ..errors import RecordFileNotFoundError
+    from ..errors import OutputError, RecordFileNotFoundError
+    from ..io.outputset import check_output_folder, output_set
 
     from .public_brb import brb_example
+
+    if args.out is not None:  # refused before the examples run (one set: never a mix, never other files)
+        try:
+            check_output_folder(args.out, "public-data")
+        except OutputError as exc:
+            print(f"jointid public-data: error: {exc}", file=sys.stderr)
+            return 2
 
     runs = {"silverbox": silverbox_multilevel, "benchmark": silverbox_benchmark, "unesp": unesp_sine_dwells,
             "f16": f16_restoring_force, "brb": brb_example}
@@ -753,19 +761,19 @@ def main(argv=None) -> int:
         from ..io.results import atomic_write, write_json
         from ..report.html import figure_to_png
 
-        args.out.mkdir(parents=True, exist_ok=True)
-        write_json(args.out / "results.json", {k: r.summary() for k, r in results.items()})
-        pngs = {}
-        for k, r in results.items():
-            fig = r.plot()
-            fig = fig if hasattr(fig, "savefig") else np.ravel(fig)[0].figure
-            pngs[k] = figure_to_png(fig, dpi=120)  # drawn once: the same bytes in the file and the page
-            atomic_write(args.out / f"{k}.png", pngs[k])
-            plt.close(fig)
-        write_report(args.out / "report.html", results, pngs)
-        for k, r in results.items():  # an example identified as a campaign writes its identify set in DIR/<name>
-            if hasattr(r, "write"):
-                r.write(args.out / k)
+        with output_set(args.out, kind="public-data") as tmp:  # put in place whole once complete
+            write_json(tmp / "results.json", {k: r.summary() for k, r in results.items()})
+            pngs = {}
+            for k, r in results.items():
+                fig = r.plot()
+                fig = fig if hasattr(fig, "savefig") else np.ravel(fig)[0].figure
+                pngs[k] = figure_to_png(fig, dpi=120)  # drawn once: the same bytes in the file and the page
+                atomic_write(tmp / f"{k}.png", pngs[k])
+                plt.close(fig)
+            write_report(tmp / "report.html", results, pngs)
+            for k, r in results.items():  # an example identified as a campaign writes its identify set in DIR/<name>
+                if hasattr(r, "write"):
+                    r.write(tmp / k)
         print(f"report.html, figures and results.json written to {args.out}")
     return 0
 
