@@ -163,3 +163,40 @@ def test_cleanup_runs_on_the_workers_after_the_tasks(cluster, tmp_path):
                         cleanup=functools.partial(remove_stale_scratch, str(tmp_path)))
     assert out == [(3, 1), (2, 1)]
     assert not list(tmp_path.iterdir())
+
+
+def test_records_go_to_the_workers_in_chunks_and_come_back_in_order(cluster):
+    """A few tasks per worker carry many calls each (their fixed cost is shared); the results are
+    those of the calls one by one, in the order of the list."""
+    from jointid.app.parallel import chunk_indices
+
+    assert chunk_indices(2000, 2) == [list(range(a, a + 125)) for a in range(0, 2000, 125)]
+    assert chunk_indices(5, 2) == [[0], [1], [2], [3], [4]]
+    assert chunk_indices(7, 1, chunk_size=3) == [[0, 1, 2], [3, 4, 5], [6]]
+    seen = []
+    with distributed.Client(cluster) as client:
+        out = map_tasks(divmod, [(n, 7) for n in range(300, 0, -1)], client=client, chunk_size=64,
+                        on_result=lambda i, r: seen.append(i))
+    assert out == [divmod(n, 7) for n in range(300, 0, -1)]
+    assert sorted(seen) == list(range(300))
+
+
+def test_a_chunk_that_fails_loses_only_its_failing_call(cluster):
+    with distributed.Client(cluster) as client:
+        out = map_tasks(_fails_on_13, [(n,) for n in range(40)], client=client, chunk_size=10,
+                        on_lost=lambda i, message: ("lost", i, "ValueError" in message))
+    assert out == [("lost", 13, True) if n == 13 else n * n for n in range(40)]
+
+
+def _fails_on_13(n):
+    if n == 13:
+        raise ValueError("thirteen")
+    return n * n
+
+
+def test_too_few_calls_for_a_local_cluster_run_in_this_process(monkeypatch):
+    from jointid.app import parallel
+
+    monkeypatch.setattr(parallel, "local_cluster", lambda *a, **k: pytest.fail("no cluster for 5 calls"))
+    assert map_tasks(divmod, [(n, 3) for n in range(5)], jobs=2, min_items=10) == [divmod(n, 3) for n in range(5)]
+    assert parallel.LAST_RUN["executor"] == "in-process"

@@ -334,4 +334,10 @@ def process_all(specs, settings, to_modal) -> list:
 
     return map_tasks(process_record, [(spec, settings, tm) for spec, tm in zip(specs, per_record)], jobs=settings.jobs,
                      scheduler=settings.scheduler, progress=settings.progress, desc="records", on_lost=lost,
-                     files=[spec.path for spec in specs])  # on an existing cluster: do its workers see the records?
+                     files=[spec.path for spec in specs],  # on an existing cluster: do its workers see the records?
+                     min_items=MIN_PARALLEL_RECORDS)
+
+
+#: Fewer records than this are identified in this process even with ``jobs > 1``: a record takes
+#: tens of milliseconds, a local cluster seconds to start (the results are the same).
+MIN_PARALLEL_RECORDS = 100
