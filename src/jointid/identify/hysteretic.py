@@ -309,11 +309,16 @@ def first_harmonic_peak(k, c, law, force_amplitude):
     Q = float(force_amplitude)
 
     def best(a):
-        K, L = k + float(np.asarray(law.first_harmonic(a)[0])), float(np.asarray(law.first_harmonic(a)[1]))
-        w0 = math.sqrt(max(K, 1e-300))
-        res = optimize.minimize_scalar(lambda w: (K - w * w) ** 2 + (c * w + L) ** 2, bounds=(0.5 * w0, 1.5 * w0),
-                                       method="bounded", options={"xatol": 1e-12 * w0})
-        return a * a * res.fun - Q * Q, res.x
+        k_eq, k_loss = law.first_harmonic(a)
+        K, L = k + float(k_eq), float(k_loss)
+        # d/dw [(K - w^2)^2 + (c w + L)^2] = 0: 4 w^3 + (2 c^2 - 4 K) w + 2 c L = 0
+        roots = np.roots([4.0, 0.0, 2.0 * c * c - 4.0 * K, 2.0 * c * L])
+        ws = [r.real for r in roots if abs(r.imag) <= 1e-9 * abs(r) and r.real > 0]
+        if not ws:
+            ws = [math.sqrt(max(K, 1e-300))]
+        g = [(K - w * w) ** 2 + (c * w + L) ** 2 for w in ws]
+        i = int(np.argmin(g))
+        return a * a * g[i] - Q * Q, ws[i]
 
     lo = 1e-12
     hi = Q / max(k, 1e-300)
