@@ -13,10 +13,6 @@ from .problem import _linear_closure_amplitude
 from .sweep import _sweep
 
 
-# Pseudo-arclength continuation
-# ----------------------------------------------------------------------------------------
-
-
 class _Arclength:
     """Scaled augmented system ``G(u, nu) = 0`` with ``z = zs u``, ``omega = w0 + W nu``."""
 

@@ -23,9 +23,6 @@ from .results import SteadyState, linear_frf
 from .stability import _StabilityMixin
 
 
-# ----------------------------------------------------------------------------------------
-# Problem context: everything that does not change with omega
-# ----------------------------------------------------------------------------------------
 class _Problem(_BatchMixin, _StabilityMixin):
     """AFT residual/Jacobian of one model, force level and harmonic truncation.
 

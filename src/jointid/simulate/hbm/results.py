@@ -11,10 +11,6 @@ from ...errors import RecordError
 from ..model import SingleModeModel
 
 
-# Results
-# ----------------------------------------------------------------------------------------
-
-
 @dataclass(frozen=True, eq=False)
 class SteadyState:
     """A periodic steady state found by harmonic balance.

@@ -16,11 +16,6 @@ from ...errors import ConvergenceError
 from .kernels import _TINY, _extrapolate, _extrapolate_one
 
 
-# ----------------------------------------------------------------------------------------
-# Sequential sweep (fast path)
-# ----------------------------------------------------------------------------------------
-
-
 def _block(pts):
     """Points ``(omega, z, evaluation, iterations)`` as one block of arrays ``(omegas, Z,
     residual norms, peak values (NaN where not evaluated), iterations)``."""
