@@ -24,6 +24,12 @@ accel_42 = 0.42
 """
 
 
+@pytest.fixture(autouse=True)
+def _in_a_scratch_folder(tmp_path, monkeypatch):
+    """``modal`` without ``--out`` writes ``modal-out`` in the working folder: never the repository's."""
+    monkeypatch.chdir(tmp_path)
+
+
 @pytest.fixture(scope="module", params=[120, 540])
 def random_test(request, tmp_path_factory):
     """The demo's random test (default plan: 0.1 N rms to 700 Hz, 128 s at 2048 Hz) written as UFF 58."""
