@@ -275,15 +275,10 @@ def _read_csv_columns(path: Path, channels: dict, name=None, record=None, option
 
 def _read_uff_columns(path: Path, channels: dict) -> dict:
     """Columns from UFF 58 datasets: the abscissa of an FRF or spectrum dataset is ``frequency_hz``."""
-    from .uff import _check_file_end, _candidates, _norm, _pyuff
+    from .uff import _candidates, _norm, open_uff
 
-    pyuff = _pyuff()
-    if not path.is_file():
-        raise RecordFileNotFoundError(f"{where(path)}UFF file not found")
-    _check_file_end(path)
+    uff, types = open_uff(path)
     try:
-        uff = pyuff.UFF(str(path))
-        types = [int(t) for t in uff.get_set_types()]
         sets = [(i, uff.read_sets(i)) for i, t in enumerate(types) if t == 58]
     except Exception as exc:
         raise RecordError(f"{where(path)}cannot parse the UFF file: {exc}") from exc

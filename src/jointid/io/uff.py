@@ -319,6 +319,19 @@ def _uneven_time(path: Path, x: np.ndarray, label: str) -> tuple[float, float]:
     return float(x[0]), float(dt)
 
 
+def open_uff(path: Path):
+    """``(pyuff.UFF, dataset types)`` of a UFF file, checked to exist and to end whole."""
+    pyuff = _pyuff()
+    if not path.is_file():
+        raise RecordFileNotFoundError(f"{where(path)}UFF file not found")
+    _check_file_end(path)
+    try:
+        uff = pyuff.UFF(str(path))
+        return uff, [int(t) for t in uff.get_set_types()]
+    except Exception as exc:
+        raise RecordError(f"{where(path)}cannot parse the UFF file: {exc}") from exc
+
+
 def read_uff(
     path: str | os.PathLike,
     channels: Sequence[str] | Mapping[str, str] | None = None,
@@ -367,16 +380,8 @@ def read_uff(
     >>> back.names, back.fs, back.units["force"], np.array_equal(back["force"], rec["force"])
     (('force',), 1024.0, 'N', True)
     """
-    pyuff = _pyuff()
     path = Path(path)
-    if not path.is_file():
-        raise RecordFileNotFoundError(f"{where(path)}UFF file not found")
-    _check_file_end(path)
-    try:
-        uff = pyuff.UFF(str(path))
-        types = [int(t) for t in uff.get_set_types()]
-    except Exception as exc:
-        raise RecordError(f"{where(path)}cannot parse the UFF file: {exc}") from exc
+    uff, types = open_uff(path)
     if not types:
         raise RecordError(
             f"{where(path)}expected UFF datasets delimited by '    -1' lines, found none; the "
