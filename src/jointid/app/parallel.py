@@ -350,15 +350,25 @@ def local_cluster(n_workers: int, allowed_failures: int = ALLOWED_FAILURES):
 
     No dashboard; the scheduler's small HTTP server (health checks) takes a free loopback port.
     A task may take ``allowed_failures`` workers down with it and still be run again.
+
+    The workers run without dask's statistical profiler (:data:`WORKER_CONFIG`): it samples the
+    stack of the running task every 10 ms, CPU time taken from the numerical work.
     """
     import logging
 
+    import dask
     from distributed import LocalCluster
 
-    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                        dashboard_address=None,
-                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0", "allowed_failures": allowed_failures},
-                        silence_logs=logging.ERROR)
+    with dask.config.set(WORKER_CONFIG):  # the nannies hand this configuration to their workers
+        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                            dashboard_address=None,
+                            scheduler_kwargs={"dashboard_address": "127.0.0.1:0", "allowed_failures": allowed_failures},
+                            silence_logs=logging.ERROR)
+
+
+#: dask configuration of the workers of :func:`local_cluster` (on an existing cluster, set
+#: ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False`` where the workers start).
+WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
 
 
 #: What the last :func:`map_tasks` call of this process ran on (set when it returns):
