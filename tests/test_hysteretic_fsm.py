@@ -18,7 +18,7 @@ import pytest
 
 from jointid.errors import IdentificationError
 from jointid.identify.hysteretic import HystereticForceStateMapping, first_harmonic_peak
-from jointid.joints import Iwan4, Jenkins
+from jointid.joints import DiscreteIwan, Iwan4, Jenkins
 from jointid.signal.harmonics import steady_state_signals
 
 K = (2 * np.pi * 30.0) ** 2
@@ -73,6 +73,11 @@ def integrate(k, c, ks, phis, Q, omega, steps=256, periods=150, record=24, sub=2
     return t[:, per:], qq[:, per:], aa[:, per:], err
 
 
+def sliders_of(law):
+    """The Jenkins elements of a law, as a :class:`DiscreteIwan`."""
+    return law.sliders if isinstance(law, Iwan4) else DiscreteIwan([law.kt], [law.Fs])
+
+
 def campaign(law, levels, span):
     """Clean time-integration campaign: ``(t, accel, Q, omega)`` per dwell, 13 dwells a level around its peak."""
     Qs, ws = [], []
@@ -81,7 +86,7 @@ def campaign(law, levels, span):
         for f in fp * (1 + span * np.linspace(-1, 1, 13)):
             Qs.append(Q)
             ws.append(2 * np.pi * f)
-    sl = law.sliders if isinstance(law, Iwan4) else law._elements
+    sl = sliders_of(law)
     t, q, a, err = integrate(K, C, sl.stiffness, sl.slip_displacement, Qs, ws)
     assert err.max() < 1e-5, f"not in steady state: {err.max():.3g}"
     return t, a, np.array(Qs), np.array(ws)
@@ -103,7 +108,7 @@ JENKINS_LEVELS = (6.0, 10.0, 14.0)
 _IWAN_KT, _CHI, _BETA, _PM = 0.3 * K, -0.5, 0.5, 2e-3
 IWAN = Iwan4(_IWAN_KT * _PM * (_BETA + (_CHI + 1) / (_CHI + 2)) / (1 + _BETA), _IWAN_KT, _CHI, _BETA,
              n_sliders=60, phi_min_ratio=1e-4)
-IWAN_LEVELS = (2.0, 4.0, 6.0)
+IWAN_LEVELS = (5.0, 7.0, 9.0)
 
 
 @pytest.fixture(scope="module")
@@ -214,3 +219,42 @@ def test_monte_carlo_iwan_standard_errors(iwan_data):
     print(dict(zip(names, np.round(sd, 3))), dict(zip(names, np.round(z.mean(axis=0), 3))))
     assert np.all((sd > 0.8) & (sd < 1.25)), dict(zip(names, sd))
     assert np.all(np.abs(z.mean(axis=0)) < 0.5)
+
+
+def ti_peak(k, c, sliders, Q, f0, span=0.012, n=49):
+    """Peak of the steady-state fundamental amplitude over a fine grid of dwells by time integration
+    (from rest at each dwell), refined by the parabola through the largest three: ``(f_peak, a_peak)``."""
+    fs = f0 * (1 + np.linspace(-span, span, n))
+    t, q, _, err = integrate(k, c, sliders.stiffness, sliders.slip_displacement, np.full(n, Q), 2 * np.pi * fs,
+                             periods=200)
+    assert err.max() < 1e-5
+    amp = np.array([np.hypot(*np.linalg.lstsq(np.column_stack([np.cos(2 * np.pi * f * tt), np.sin(2 * np.pi * f * tt)]),
+                                              qq, rcond=None)[0]) for f, tt, qq in zip(fs, t, q)])
+    i = int(np.clip(np.argmax(amp), 1, n - 2))
+    assert 3 <= np.argmax(amp) <= n - 4, "the peak is not inside the dwells"
+    y0, y1, y2 = amp[i - 1: i + 2]
+    d = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
+    return fs[i] + d * (fs[1] - fs[0]), y1 - 0.25 * (y0 - y2) * d
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["jenkins", "iwan4"])
+def test_prediction_of_held_out_levels(name):
+    """Fitted on the two lower levels: the top level's peak and that of a level 1.75x the highest fitted one,
+    against the true system's, both by time integration (the model's error) and by the fit's first-harmonic
+    ``peak`` (what a user gets)."""
+    truth = JENKINS if name == "jenkins" else IWAN
+    levels = JENKINS_LEVELS if name == "jenkins" else IWAN_LEVELS
+    kw = {} if name == "jenkins" else dict(n_sliders=60, phi_min_ratio=1e-4)
+    data = campaign(truth, levels[:2], 0.06 if name == "jenkins" else 0.05)
+    res = HystereticForceStateMapping(name, **kw).fit(noisy(data, np.random.default_rng(7))).result_
+    sl_t, sl_f = sliders_of(truth), sliders_of(res.law)
+    for Q, tol_f, tol_a in ((levels[2], 5e-4, 0.02), (1.75 * levels[1], 1e-3, 0.03)):
+        f0, _ = first_harmonic_peak(K, C, truth, Q)
+        ft, at = ti_peak(K, C, sl_t, Q, f0)
+        ff, af = ti_peak(res.k, res.c, sl_f, Q, f0)
+        fh, ah = res.peak(Q)
+        print(f"{name} Q={Q:g}: model f {ff / ft - 1:+.2e} a {af / at - 1:+.2e}; first-harmonic peak "
+              f"f {fh / ft - 1:+.2e} a {ah / at - 1:+.2e}")
+        assert abs(ff / ft - 1) < tol_f and abs(af / at - 1) < tol_a
+        assert abs(fh / ft - 1) < tol_f and abs(ah / at - 1) < tol_a

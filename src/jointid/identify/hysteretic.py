@@ -125,6 +125,10 @@ class _JenkinsShape:
     def unit(self, eta):
         return Jenkins(1.0, math.exp(eta[0]))
 
+    @staticmethod
+    def reach(eta):
+        return ("the slip displacement", math.exp(eta[0]), "slip")
+
     def law(self, scale, eta):
         return Jenkins(scale, scale * math.exp(eta[0]))
 
@@ -162,6 +166,10 @@ class _Iwan4Shape:
 
     def unit(self, eta):
         return self.law(1.0, eta)
+
+    @staticmethod
+    def reach(eta):
+        return ("phi_max", math.exp(eta[0]), "macro-slip")
 
     def bounds(self, qmax):
         return [math.log(qmax.min() * 1e-2), -0.95, 0.0], [math.log(qmax.max() * 20.0), 0.95, 20.0]
@@ -326,7 +334,10 @@ def first_harmonic_peak(k, c, law, force_amplitude):
         lo, hi = hi, hi * 2.0
         if hi > 1e12:
             raise IdentificationError(f"no peak found at force amplitude {Q:g}: the response grows without bound")
-    a = optimize.brentq(lambda x: best(x)[0], lo, hi, xtol=1e-15, rtol=1e-13)
+    try:
+        a = optimize.brentq(lambda x: best(x)[0], lo, hi, xtol=1e-15, rtol=1e-13)
+    except (RuntimeError, ValueError) as exc:
+        raise IdentificationError(f"no peak found at force amplitude {Q:g}: {exc}") from None
     return best(a)[1] / (2 * np.pi), a
 
 
@@ -438,6 +449,14 @@ class HystereticForceStateMapping:
         if at_bound:
             warn.append(f"{context}{', '.join(at_bound)} at the edge of its range: the parameter is not resolved "
                         "and its standard error does not hold")
+        reach = shape.reach(eta)
+        if reach is not None and reach[1] > qmax.max():
+            warn.append(f"{context}{reach[0]} = {reach[1]:.4g} lies beyond the largest measured amplitude "
+                        f"{qmax.max():.4g}: the records do not reach the joint's {reach[2]}, which the fit extrapolates "
+                        "(its parameters are not resolved and a prediction above the measured levels is not supported)")
+        if beta[0] < 0:
+            warn.append(f"{context}the linear stiffness k = {beta[0]:.4g} besides the joint is negative: the joint law "
+                        "and k are not separated by these records")
         if beta[2] <= 0:
             warn.append(f"{context}the joint's force scale {shape.scale_name} = {beta[2]:.4g} is not positive: "
                         f"the {self.law} law does not describe these records")
