@@ -1,6 +1,7 @@
 """Joint laws fitted to backbones: closed forms of the Iwan first harmonic, recovery from synthetic backbones."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from jointid.identify.jointlaw import (
     iwan_harmonic_stiffness_integral,
 )
 from jointid.rig.iwan import IwanParameters, JenkinsElements, JointLaw
+from jointid.rounding import format_estimate
 
 U = np.cos(2 * np.pi * np.arange(4096) / 4096)
 
@@ -74,6 +76,10 @@ def test_iwan_recovered_from_a_noisy_backbone():
     s = fit.summary()
     json.dumps(s)
     assert "slip_force_given_beta" in s and "not determined" in fit.report()
+    # the report rounds each parameter to its standard error (the one formatter), with its 95 % interval
+    chi = next(line for line in fit.report().splitlines() if line.strip().startswith("chi ="))
+    assert chi.strip() == f"chi = {format_estimate(fit.get('chi'), fit.get_stderr('chi'))}"
+    assert "95 % [" in chi and len(re.findall(r"\d", chi.split("±")[0])) <= 6
 
 
 def test_single_mode_and_cubic_viscous_alternative():

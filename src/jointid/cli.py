@@ -250,6 +250,7 @@ def _modal(args) -> int:
     if args.frf is not None:
         from .errors import IdentificationError
         from .io.campaign import RecordSpec, read_record
+        from .report.formatting import format_percent, format_value
         from .report.modal_plots import plot_frf
         from .signal.frf import fit_modes, h1_estimate
 
@@ -270,7 +271,8 @@ def _modal(args) -> int:
         print(f"\nH1 of {column!r} in {args.frf}: {frf.report()}")
         print(fit.report())
         for i, (f, z, ok) in enumerate(zip(fit.frequencies_hz, fit.damping_ratios, fit.trusted), 1):
-            print(f"  mode {i}: {f:.4f} Hz, damping ratio {100 * z:.3f} %{'' if ok else ' (NOT trusted)'}")
+            print(f"  mode {i}: {format_value(f, 6)} Hz, damping ratio {format_percent(100 * z)}"
+                  f"{'' if ok else ' (NOT trusted)'}")
         summary["frf_fit"] = {"frequencies_hz": fit.frequencies_hz, "damping_ratios": fit.damping_ratios,
                               "record": str(args.frf), "channel": column, "h1": frf.summary(), **fit.summary()}
         figures.append(("frf.png", plot_frf(frf, fit=fit)[0]))

@@ -38,6 +38,7 @@ import numpy as np
 from ..errors import JointidError, JointidWarning
 from ..numerics.peaks import parabolic_peak, refine_peak
 from ..signal.harmonics import fit_harmonics
+from ..rounding import format_percent, format_value
 
 __all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "with_repredictions",
            "group_loops", "loop_errors"]
@@ -198,18 +199,20 @@ class Reprediction:
 
     def report(self) -> str:
         pts = self.point_rms_error_percent
+        rms = f"; measured points rms {format_percent(pts)}" if pts is not None else ""
+        head = f"preload {format_value(self.preload)}, F = {format_value(self.force_level)}"
         if not np.isfinite(self.peak_predicted[0]):
-            return (f"preload {self.preload}, F = {self.force_level}: no re-predicted peak inside the band"
-                    + (f"; measured points rms {pts:.2f} %" if pts is not None else ""))
+            return f"{head}: no re-predicted peak inside the band{rms}"
         if self.peak_resolved:
-            peak = (f"peak {self.peak_predicted[0]:.4f} Hz ({self.peak_frequency_error_percent:+.3f} %), magnitude "
-                    f"{self.peak_predicted[1]:.4g} ({self.peak_amplitude_error_percent:+.2f} %) vs {self.reference_kind}")
+            peak = (f"peak {format_value(self.peak_predicted[0], 7)} Hz "
+                    f"({format_percent(self.peak_frequency_error_percent, sign=True)}), magnitude "
+                    f"{format_value(self.peak_predicted[1])} ({format_percent(self.peak_amplitude_error_percent, sign=True)})"
+                    f" vs {self.reference_kind}")
         else:
-            peak = (f"predicted peak {self.peak_predicted[0]:.4f} Hz, magnitude {self.peak_predicted[1]:.4g}; "
-                    f"{self.peak_status}: no peak error")
-        return (f"preload {self.preload}, F = {self.force_level}: {peak}"
-                + (f"; measured points rms {pts:.2f} %" if pts is not None else "")
-                + (f"; folds at {', '.join(f'{f:.3f}' for f in self.folds_hz)} Hz" if self.folds_hz else ""))
+            peak = (f"predicted peak {format_value(self.peak_predicted[0], 7)} Hz, magnitude "
+                    f"{format_value(self.peak_predicted[1])}; {self.peak_status}: no peak error")
+        folds = f"; folds at {', '.join(format_value(f, 7) for f in self.folds_hz)} Hz" if self.folds_hz else ""
+        return f"{head}: {peak}{rms}{folds}"
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(self.report())}</pre>"

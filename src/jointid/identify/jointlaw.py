@@ -51,6 +51,7 @@ import numpy as np
 from scipy import integrate, optimize
 
 from ..errors import IdentificationError
+from ..rounding import format_estimate, format_value
 
 __all__ = ["JointLawFit", "JointModes", "fit_iwan", "fit_cubic_viscous", "fit_joint_laws", "iwan_harmonic_stiffness_integral"]
 
@@ -187,15 +188,16 @@ class JointLawFit:
     def report(self) -> str:
         ad = self.adequacy
         lines = [f"Joint law {self.law}: {ad['n_points']} backbone points, joint amplitude "
-                 f"{self.joint_amplitude_range[0]:.3g} .. {self.joint_amplitude_range[1]:.3g}"]
+                 f"{format_value(self.joint_amplitude_range[0], 3)} .. {format_value(self.joint_amplitude_range[1], 3)}"]
         for n, v, s in zip(self.names, self.values, self.stderr):
-            lines.append(f"  {n:>8} = {v:.6g} ± {1.96 * s:.2g} (95 %) {self.units.get(n, '')}".rstrip())
+            lines.append(f"  {n:>8} = {format_estimate(v, s, self.units.get(n, ''))}")
         lines.append(f"  not determined by this backbone: {', '.join(self.not_determined) or '-'}")
-        lines.append(f"  chi2/dof {ad['chi2_red']:.3g}; rms residual omega {ad['rms_omega_rel']:.2e} (relative), "
-                     f"zeta {ad['rms_zeta_rel']:.2e}; AIC {ad['aic']:.1f}, BIC {ad['bic']:.1f}")
+        lines.append(f"  chi2/dof {format_value(ad['chi2_red'], 3)}; rms residual omega "
+                     f"{format_value(ad['rms_omega_rel'], 3)} (relative), zeta {format_value(ad['rms_zeta_rel'], 3)}; "
+                     f"AIC {format_value(ad['aic'], 6)}, BIC {format_value(ad['bic'], 6)}")
         if self.law == "iwan" and self.K_T is not None:
-            fs = ", ".join(f"beta={b:g}: {self.slip_force(b):.4g}" for b in (0.0, 0.5, 1.0))
-            lines.append(f"  with K_T = {self.K_T:.6g}: F_S {fs}")
+            fs = ", ".join(f"beta={format_value(b)}: {format_value(self.slip_force(b))}" for b in (0.0, 0.5, 1.0))
+            lines.append(f"  with K_T = {format_value(self.K_T, 6)}: F_S {fs}")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:

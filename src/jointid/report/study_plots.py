@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .formatting import format_value
 from .html import Section, write_html
 from .identify_plots import new_axes
 
@@ -17,12 +18,15 @@ __all__ = ["distribution_text", "statistics_table", "plot_calibration", "plot_z_
 _COLUMNS = ("parameter", "n", "n_missing", "rel_bias", "rel_rmse", "mean_z", "std_z", "coverage")
 
 
-def _fmt(v) -> str:
+def _fmt(v, digits=4) -> str:
     if v is None:
         return "-"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    return f"{float(v):.4g}"
+    return format_value(v, digits)
+
+
+def _pct(fraction) -> str:
+    """A fraction shown in % (the column's unit), three significant digits."""
+    return "-" if fraction is None else format_value(100 * float(fraction), 3)
 
 
 def distribution_text(spec) -> str:
@@ -58,13 +62,12 @@ def _stat_rows(stats) -> list:
         rows.append({
             "parameter": str(s["parameter"]),
             "n (missing)": f"{_fmt(s.get('n'))} ({_fmt(s.get('n_missing'))})",
-            "rel. bias [%]": "-" if s.get("rel_bias") is None else f"{100 * float(s['rel_bias']):.3g}",
-            "rel. RMSE [%]": "-" if s.get("rel_rmse") is None else f"{100 * float(s['rel_rmse']):.3g}",
-            "mean(z) [1]": "-" if s.get("mean_z") is None else f"{float(s['mean_z']):.2f}",
-            "std(z) [1]": "-" if s.get("std_z") is None else f"{float(s['std_z']):.2f}",
-            "coverage [%] (95 % interval)": "-" if cov is None else (
-                f"{100 * float(cov):.1f}" + ("" if lo is None or hi is None
-                                             else f" ({100 * float(lo):.1f} .. {100 * float(hi):.1f})")),
+            "rel. bias [%]": _pct(s.get("rel_bias")),
+            "rel. RMSE [%]": _pct(s.get("rel_rmse")),
+            "mean(z) [1]": _fmt(s.get("mean_z"), 3),
+            "std(z) [1]": _fmt(s.get("std_z"), 3),
+            "coverage [%] (95 % interval)": _pct(cov) + ("" if cov is None or lo is None or hi is None
+                                                         else f" ({_pct(lo)} .. {_pct(hi)})"),
         })
     return rows
 
