@@ -54,11 +54,13 @@ N_STARTS = 3
 
 
 def _basis(tau, omega, n_harmonics, dc=True):
-    ph = omega * np.asarray(tau, float)[:, None] * np.arange(1, n_harmonics + 1)
-    cols = np.empty((ph.shape[0], 2 * n_harmonics))
-    cols[:, 0::2] = np.cos(ph)
-    cols[:, 1::2] = np.sin(ph)
-    return np.column_stack([np.ones(ph.shape[0]), cols]) if dc else cols
+    """``[1, cos wt, sin wt, cos 2wt, ...]`` (harmonics by repeated complex products, exact to a few ulp)."""
+    z = np.exp(1j * omega * np.asarray(tau, float))
+    Z = np.cumprod(np.broadcast_to(z[:, None], (z.size, n_harmonics)), axis=1)
+    cols = np.empty((z.size, 2 * n_harmonics))
+    cols[:, 0::2] = Z.real
+    cols[:, 1::2] = Z.imag
+    return np.column_stack([np.ones(z.size), cols]) if dc else cols
 
 
 def _noise_level(tau, x, omega, n_harmonics, dt):
@@ -402,6 +404,7 @@ class HystereticForceStateMapping:
         return y - X @ beta, beta
 
     # --- fit --------------------------------------------------------------------------
+    @single_threaded
     def fit(self, signals_list, *, context=""):
         if self.law not in _SHAPES:
             raise IdentificationError(f"law must be one of {LAWS}, got {self.law!r}")
