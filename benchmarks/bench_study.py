@@ -10,9 +10,11 @@ times, measured in the same process:
 
 It prints the wall and CPU times, the ratios, the round trip of an empty task, the cluster
 start-up time, the peak resident memory of each worker, the load average (a shared machine
-gives a lower ratio than a quiet one: compare the CPU time with the wall time; the CPU
-overhead per task, workers' and this process's CPU time less the in-process run's, does not
-depend on the load), and checks
+gives a lower ratio than a quiet one: compare the CPU time with the wall time), the CPU
+overhead per task (workers' and this process's CPU time less the in-process run's: two runs
+one after the other, so a changing load shows in it), the paired CPU time per campaign (the
+same campaigns in this process and on a worker in turn, which a changing load does not bias),
+and checks
 that the three runs wrote the same ``campaigns.jsonl`` byte for byte.
 
     python benchmarks/bench_study.py                  # ~3 min on two quiet cores
@@ -64,6 +66,33 @@ def _warm_up():
     import jointid.app.study  # noqa: F401 - imports are a one-off cost of a worker, not of its tasks
 
 
+def _task_cpu(p, index):
+    """CPU time of one campaign: of the thread that ran it, and of its whole process."""
+    from jointid._blas import single_threaded
+    from jointid.app.study import run_campaign
+
+    t, c = time.thread_time(), time.process_time()
+    single_threaded(run_campaign)(p, index)
+    return time.thread_time() - t, time.process_time() - c
+
+
+def paired_cpu(p, client, n=12):
+    """Median CPU per campaign in this process and on a worker, the same campaigns in turn
+    (both see the same load, unlike two runs one after the other)."""
+    import statistics
+
+    from jointid.app.study import StudyPlan
+
+    sp = StudyPlan.from_mapping(p)
+    client.submit(_task_cpu, sp, 0, pure=False).result()
+    _task_cpu(sp, 0)
+    here, there = [], []
+    for i in range(1, n + 1):
+        here.append(_task_cpu(sp, i))
+        there.append(client.submit(_task_cpu, sp, i, pure=False).result())
+    return [(statistics.median(x[k] for x in here), statistics.median(x[k] for x in there)) for k in (0, 1)]
+
+
 def timed(fn):
     w, c = time.perf_counter(), time.process_time()
     out = fn()
@@ -92,6 +121,11 @@ def main(argv=None):
             with local_cluster(workers) as cl, distributed.Client(cl) as client:
                 client.run(_warm_up)
                 start = time.perf_counter() - t0
+                if workers == 1:
+                    (th, tw), (ph, pw) = paired_cpu(p, client)
+                    print(f"paired CPU per campaign (same campaigns in turn): thread {1e3 * th:.0f} ms here, "
+                          f"{1e3 * tw:.0f} ms on a worker ({tw / th:.3f}x); process {1e3 * ph:.0f} / {1e3 * pw:.0f} ms "
+                          f"({pw / ph:.3f}x)")
                 _, t_noop, _ = timed(lambda: map_tasks(_noop, [(i,) for i in range(n)], client=client))
                 cpu0 = client.run(_cpu_s)
                 _, t, cpu_main = timed(lambda: run_study(p, tmp / f"w{workers}", client=client, report=False))
