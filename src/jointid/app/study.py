@@ -50,6 +50,7 @@ import copy
 import hashlib
 import html
 import json
+import math
 import os
 import tempfile
 import warnings
@@ -142,6 +143,239 @@ def _check_distribution(path, spec, source):
             raise ManifestError(f"{where}: size must be a positive integer or [min, max], got {size!r}")
 
 
+# bounds of a plan that a 2-core / 24 GiB machine runs (stated in docs/formats.md, "Study plan")
+MAX_CAMPAIGNS = 100_000  # campaigns of a study, all grid points together
+MAX_GRID_POINTS = 1_000
+MAX_SEED = 2**63 - 1
+MAX_PRELOADS = 20  # [[model]] tables of a campaign
+MAX_LEVELS = 50  # force levels (also the largest `size` of a draw)
+MAX_FREQUENCIES = 1_000
+MAX_CAMPAIGN_RECORDS = 5_000  # preloads x force levels x frequencies
+MAX_RECORD_SAMPLES = 2_000_000  # fs x periods / lowest frequency
+MAX_LAW_ORDER = 10
+_INF = float("inf")
+
+# what a key of the simulation tables holds: ("number", low, high, low excluded), ("int", low, high),
+# ("bool",), ("str",), ("label",) (a string or a number), ("list", element, min length, max length),
+# ("table", value) (a table of name -> value)
+_POSITIVE = ("number", 0.0, 1e7, True)
+_SPECS = {
+    ("campaign", "name"): ("str",),
+    ("model", "preload"): ("label",),
+    ("model", "terms"): ("str",),
+    ("model", "omega1"): _POSITIVE,
+    ("model", "k3"): ("number", -_INF, _INF, False),
+    ("model", "coefficients"): ("table", ("number", -_INF, _INF, False)),
+    ("model", "amplitude_laws"): ("table", ("list", ("number", -_INF, _INF, False), 1, MAX_LAW_ORDER + 1)),
+    ("excitation", "force_levels"): ("list", ("number", 0.0, 1e9, True), 1, MAX_LEVELS),
+    ("excitation", "omega_start"): _POSITIVE,
+    ("excitation", "omega_stop"): _POSITIVE,
+    ("excitation", "n_frequencies"): ("int", 1, MAX_FREQUENCIES),
+    ("excitation", "frequencies_hz"): ("list", ("number", 0.0, 1e6, True), 1, MAX_FREQUENCIES),
+    ("acquisition", "fs"): ("number", 0.0, 1e6, True),
+    ("acquisition", "periods"): ("number", 2.0, 1e5, False),
+    ("acquisition", "t0"): ("number", -1e9, 1e9, False),
+    ("acquisition", "noise"): ("number", 0.0, 1e3, False),
+    ("acquisition", "seed"): ("int", 0, MAX_SEED),
+    ("acquisition", "write_frequency"): ("bool",),
+    ("acquisition", "n_harmonics"): ("int", 1, 50),
+}
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _describe(spec) -> str:
+    kind = spec[0]
+    if kind == "number":
+        lo, hi, open_lo = spec[1:]
+        low = "" if lo == -_INF else (f" > {lo:g}" if open_lo else f" >= {lo:g}")
+        high = "" if hi == _INF else f" <= {hi:g}"
+        return "a finite number" + (f"{low}{' and' if low and high else ''}{high}" if low or high else "")
+    if kind == "int":
+        return f"an integer from {spec[1]} to {spec[2]}"
+    if kind == "list":
+        return f"a list of {spec[2]} to {spec[3]} values, each {_describe(spec[1])}"
+    if kind == "table":
+        return f"a table whose values are each {_describe(spec[1])}"
+    return {"bool": "true or false", "str": "a string", "label": "a string or a number"}[kind]
+
+
+def _value_ok(spec, v) -> bool:
+    kind = spec[0]
+    if kind == "number":
+        lo, hi, open_lo = spec[1:]
+        return _is_number(v) and math.isfinite(v) and (lo < v if open_lo else lo <= v) and v <= hi
+    if kind == "int":
+        return isinstance(v, int) and not isinstance(v, bool) and spec[1] <= v <= spec[2]
+    if kind == "bool":
+        return isinstance(v, bool)
+    if kind == "str":
+        return isinstance(v, str)
+    if kind == "label":
+        return isinstance(v, str) or (_is_number(v) and math.isfinite(v))
+    if kind == "list":
+        return isinstance(v, list) and spec[2] <= len(v) <= spec[3] and all(_value_ok(spec[1], x) for x in v)
+    if kind == "table":
+        return isinstance(v, dict) and all(isinstance(k, str) and _value_ok(spec[1], x) for k, x in v.items())
+    return False  # pragma: no cover
+
+
+def _check_value(spec, v, where):
+    if spec[0] == "table" and isinstance(v, dict):  # name the entry at fault
+        for k, x in v.items():
+            _check_value(spec[1], x, f"{where}.{k}")
+    if not _value_ok(spec, v):
+        extra = ""
+        if spec == _SPECS[("model", "amplitude_laws")][1] and isinstance(v, str):
+            extra = " (a simulated law is a polynomial [c0, c1, ...] in the amplitude; the power law is not simulated)"
+        shown = repr(v) if len(repr(v)) <= 80 else repr(v)[:77] + "..."
+        raise ManifestError(f"{where}: expected {_describe(spec)}, got {shown}{extra}")
+
+
+def _path_spec(path):
+    """The spec of the value at a dotted path (``None``: a path the specs do not cover)."""
+    parts = path.split(".")
+    keys = [p for p in parts[1:] if not p.lstrip("-").isdigit()]
+    spec = _SPECS.get((parts[0], keys[0])) if keys else None
+    if spec is None:
+        return None
+    after = parts[parts.index(keys[0]) + 1:]  # what follows the key: a name in a table, an index in a list
+    for p in after:
+        if spec[0] == "table" and not p.lstrip("-").isdigit():
+            spec = spec[1]
+        elif spec[0] == "list" and p.lstrip("-").isdigit():
+            spec = spec[1]
+        else:
+            return ("none", p)
+    return spec
+
+
+def _tables_of(d, name, source):
+    """The tables under ``name`` (``[[model]]`` may be several), checked to be tables."""
+    node = d.get(name)
+    if node is None:
+        return []
+    items = node if (name == "model" and isinstance(node, list)) else [node]
+    if name == "model" and isinstance(node, list) and not 1 <= len(node) <= MAX_PRELOADS:
+        raise ManifestError(f"{source}: [[model]] needs 1 to {MAX_PRELOADS} tables, got {len(node)}")
+    for item in items:
+        if not isinstance(item, dict):
+            raise ManifestError(f"{source}: [{name}] must be a table, got {type(node).__name__} {node!r}"[:300])
+    return items
+
+
+def _check_simulation_tables(d, source):
+    """Known keys (with the nearest valid one as a hint), types and bounds of the simulation tables."""
+    for name, keys in _TABLES.items():
+        for table in _tables_of(d, name, source):
+            for k, v in table.items():
+                if k not in keys:
+                    raise ManifestError(f"{source}: [{name}] {unknown_key_message(k, keys)}")
+                _check_value(_SPECS[(name, k)], v, f"{source}: [{name}] {k}")
+
+
+def _check_draw_against_key(path, spec, source):
+    """A [vary] distribution must draw values its key takes: type, bounds, ``size`` only on a list."""
+    where = f"{source}: [vary] {path!r}"
+    target = _path_spec(path)
+    if target is None:
+        return
+    if target[0] == "none":
+        raise ManifestError(f"{where}: {target[1]!r} is below a value, not a table or a list")
+    kind = next(k for k in spec if k in _DISTRIBUTIONS)
+    args = spec[kind]
+    size = spec.get("size")
+    if size is not None:
+        if target[0] != "list":
+            raise ManifestError(f"{where}: size draws a list, but the key takes {_describe(target)}")
+        most = size if isinstance(size, int) else size[1]
+        if most > target[3]:
+            raise ManifestError(f"{where}: size draws up to {most} values, at most {target[3]} allowed")
+        target = target[1]
+    if kind == "choice":
+        kinds = {("number" if _is_number(a) else type(a).__name__) for a in args}
+        if len(kinds) > 1:
+            raise ManifestError(f"{where}: choice values must all be of one type, got {sorted(kinds)} in {args!r}"[:300])
+        for a in args:
+            _check_value(target, a, f"{where}: choice value")
+        return
+    if target[0] not in ("number", "int", "label"):
+        raise ManifestError(f"{where}: {kind} draws numbers, but the key takes {_describe(target)}")
+    if target[0] == "int" and kind != "integers":
+        raise ManifestError(f"{where}: {kind} draws fractions, but the key takes {_describe(target)}; use integers")
+    ends = list(args) if kind != "normal" else [args[0]]
+    if spec.get("random_sign"):
+        ends += [-a for a in ends]
+    for a in ends:
+        if kind == "integers" and target[0] == "int":
+            a = int(a)
+        _check_value(target, a, f"{where}: {kind} bound")
+
+
+def _candidates(simulation, vary, grid, path, counts=False):
+    """Values a key can take over the campaigns (the static value, the grid values, the draws' ends).
+
+    With ``counts``: lengths of the list it can hold (a ``size`` draw's largest count)."""
+    table, key = path.split(".")
+    out = []
+    for t in (simulation.get(table) if isinstance(simulation.get(table), list) else [simulation.get(table) or {}]):
+        if key in t:
+            out.append(t[key])
+    for p, values in grid:
+        if p == path:
+            out.extend(values)
+    for p, spec in vary:
+        if p != path:
+            continue
+        kind = next(k for k in spec if k in _DISTRIBUTIONS)
+        args = spec[kind]
+        size = spec.get("size")
+        if size is not None:
+            out.append([abs(a) for a in args] * (size if isinstance(size, int) else size[1]))
+        else:
+            out.extend(args if kind != "normal" else [args[0]])
+    if counts:
+        return [len(v) for v in out if isinstance(v, list)]
+    return [v for v in out if _is_number(v)] + [x for v in out if isinstance(v, list) for x in v if _is_number(x)]
+
+
+def _check_campaign_size(simulation, vary, grid, source):
+    """Records per campaign and samples per record stay within what one worker simulates and identifies."""
+    def c(path, default):
+        vals = _candidates(simulation, vary, grid, path)
+        return vals or [default]
+
+    models = simulation.get("model")
+    n_models = len(models) if isinstance(models, list) else 1
+    n_levels = max(_candidates(simulation, vary, grid, "excitation.force_levels", counts=True) or [1])
+    n_freq = max(c("excitation.n_frequencies", 41) + _candidates(simulation, vary, grid, "excitation.frequencies_hz",
+                                                                  counts=True))
+    n_records = n_models * n_levels * n_freq
+    if n_records > MAX_CAMPAIGN_RECORDS:
+        raise ManifestError(f"{source}: a campaign can hold {n_models} preload(s) x {n_levels} force level(s) x "
+                            f"{n_freq} frequencies = {n_records} records; at most {MAX_CAMPAIGN_RECORDS} allowed")
+    f_low = min([w / (2 * math.pi) for w in c("excitation.omega_start", _INF) + c("excitation.omega_stop", _INF)]
+                + _candidates(simulation, vary, grid, "excitation.frequencies_hz") + [_INF])
+    fs, periods = max(c("acquisition.fs", 5000.0)), max(c("acquisition.periods", 20.0))
+    if f_low < _INF and f_low > 0 and fs * periods / f_low > MAX_RECORD_SAMPLES:
+        raise ManifestError(f"{source}: a record can hold fs x periods / lowest frequency = {fs:g} x {periods:g} / "
+                            f"{f_low:.4g} Hz = {fs * periods / f_low:.3g} samples; at most {MAX_RECORD_SAMPLES:g} "
+                            f"allowed (lower [acquisition] fs or periods)")
+
+
+def _plan_integer(study, key, default, low, high, source):
+    v = study.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ManifestError(f"{source}: [study] {key} must be an integer from {low} to {high}, got {v!r}")
+    if v < low:
+        raise ManifestError(f"{source}: [study] {key} must be at least {low}, got {v!r}")
+    if v > high:
+        raise ManifestError(f"{source}: [study] {key} must be at most {high} (a study one machine runs), got {v!r}")
+    return v
+
+
 def _draw(spec, rng):
     kind = next(k for k in spec if k in _DISTRIBUTIONS)
     args = spec[kind]
@@ -224,19 +458,22 @@ class StudyPlan:
         """Parse the tables of a plan (see the module documentation)."""
         if not isinstance(d, dict):
             raise ManifestError(f"{source}: a study plan is a table, got {type(d).__name__}")
+        top = ("study", "identify", "vary", "grid") + tuple(_TABLES)
+        for k in d:
+            if k not in top:
+                raise ManifestError(f"{source}: {unknown_key_message(k, top, 'table')}")
+        for k in ("study", "identify", "vary", "grid"):
+            if not isinstance(d.get(k, {}), dict):
+                raise ManifestError(f"{source}: [{k}] must be a table, got {type(d[k]).__name__} {d[k]!r}"[:300])
         study = dict(d.get("study", {}))
         for k in study:
             if k not in ("name", "campaigns", "seed"):
                 raise ManifestError(f"{source}: [study] {unknown_key_message(k, ('name', 'campaigns', 'seed'))}")
-        try:
-            n = int(study.get("campaigns", 100))
-            seed = int(study.get("seed", 0))
-        except (TypeError, ValueError) as exc:
-            raise ManifestError(f"{source}: [study] campaigns and seed must be integers: {exc}") from exc
-        if n < 1:
-            raise ManifestError(f"{source}: [study] campaigns must be at least 1, got {n}")
-        if seed < 0:
-            raise ManifestError(f"{source}: [study] seed must be non-negative, got {seed}")
+        n = _plan_integer(study, "campaigns", 100, 1, MAX_CAMPAIGNS, source)
+        seed = _plan_integer(study, "seed", 0, 0, MAX_SEED, source)
+        name = study.get("name", "study")
+        if not isinstance(name, str):
+            raise ManifestError(f"{source}: [study] name must be a string, got {name!r}")
         ident = dict(d.get("identify", {}))
         for k in ident:
             if k not in _settings_names():
@@ -245,26 +482,46 @@ class StudyPlan:
             settings = IdentifySettings(**ident)
         except (TypeError, ValueError) as exc:
             raise ManifestError(f"{source}: [identify] {exc}") from exc
-        for k in d:
-            if k not in ("study", "identify", "vary", "grid") + tuple(_TABLES):
-                raise ManifestError(f"{source}: {unknown_key_message(k, ('study', 'identify', 'vary', 'grid') + tuple(_TABLES), 'table')}")
+        _check_simulation_tables(d, source)
         simulation = {k: copy.deepcopy(d[k]) for k in _TABLES if k in d}
         vary = tuple((str(p), dict(s)) if isinstance(s, dict) else (str(p), s) for p, s in dict(d.get("vary", {})).items())
         for p, s in vary:
             _check_path(p, source, "vary")
             _check_distribution(p, s, source)
+            _check_draw_against_key(p, s, source)
         grid = []
+        n_points = 1
         for p, values in dict(d.get("grid", {})).items():
             _check_path(p, source, "grid")
             if not isinstance(values, list) or not values:
-                raise ManifestError(f"{source}: [grid] {p!r} needs a non-empty list of values, got {values!r}")
+                raise ManifestError(f"{source}: [grid] {p!r} needs a non-empty list of values, got {values!r}"[:300])
             if p in dict(vary):
                 raise ManifestError(f"{source}: {p!r} is both in [vary] and in [grid]")
+            n_points *= len(values)
+            if n_points > MAX_GRID_POINTS:
+                raise ManifestError(f"{source}: [grid] has more than {MAX_GRID_POINTS} points (at {p!r}: "
+                                    f"{n_points} so far); at most {MAX_GRID_POINTS} allowed")
+            spec = _path_spec(p)
+            for v in values:
+                if spec is not None and spec[0] == "none":
+                    raise ManifestError(f"{source}: [grid] {p!r}: {spec[1]!r} is below a value, not a table or a list")
+                if spec is not None:
+                    _check_value(spec, v, f"{source}: [grid] {p!r} value")
             grid.append((str(p), list(values)))
-        plan = cls(str(study.get("name", "study")), n, seed, simulation, vary, tuple(grid), settings, source)
+        if n * n_points > MAX_CAMPAIGNS:
+            raise ManifestError(f"{source}: [study] campaigns = {n} per grid point x {n_points} grid points = "
+                                f"{n * n_points} campaigns; at most {MAX_CAMPAIGNS} allowed")
+        _check_campaign_size(simulation, vary, grid, source)
+        plan = cls(name, n, seed, simulation, vary, tuple(grid), settings, source)
         from .synthesis import load_simulation_config
 
-        load_simulation_config(plan.draw(0)[0], source=source)  # the first campaign's configuration must be valid
+        try:  # the first campaign's configuration must be valid
+            load_simulation_config(plan.draw(0)[0], source=source)
+        except JointidError:
+            raise
+        except (TypeError, ValueError, KeyError, IndexError, OverflowError, ZeroDivisionError) as exc:
+            raise ManifestError(f"{source}: the first campaign's configuration is not valid: "
+                                f"{type(exc).__name__}: {exc}") from None
         return plan
 
     def mapping(self) -> dict:
