@@ -174,3 +174,106 @@ def test_study_jobs_out_of_range(tmp_path, capsys, no_campaigns, jobs):
     code, err = _run(["study", plan, "--out", out, "--quiet", "--jobs", jobs], capsys)
     assert code == 2 and "jobs" in err and jobs in err, err
     assert not out.exists()
+
+
+# ------------------------------------------------------------------------ resumed studies
+def _fake_campaign(plan, index):
+    """A well-formed campaign line, without simulating (the resume checks are about the file)."""
+    return {"index": int(index), "seed": plan.campaign_seed(index), "plan": plan.fingerprint,
+            "grid_point": index % len(plan.points), "drawn": {"acquisition.noise": 0.01}, "status": "ok",
+            "error": None, "n_records": 10, "n_failed": 0,
+            "rows": [{"parameter": "groups.omega1", "where": "sim", "estimate": 170.1, "stderr": 0.1,
+                      "ci95": [169.9, 170.3], "truth": 170.0, "z": 1.0, "covered": True}]}
+
+
+@pytest.fixture
+def study_folder(tmp_path, monkeypatch, capsys):
+    """A finished study of 3 (fake) campaigns: plan, output folder."""
+    import jointid.app.study as study
+
+    plan = tmp_path / "plan.toml"
+    plan.write_text(BASE_PLAN)
+    out = tmp_path / "out"
+    monkeypatch.setattr(study, "run_campaign", _fake_campaign)
+    assert main(["study", str(plan), "--out", str(out), "--quiet", "--no-report"]) == 0
+    capsys.readouterr()
+    monkeypatch.setattr(study, "run_campaign", _never)
+    return plan, out
+
+
+def _lines(out):
+    return [json.loads(t) for t in (out / "campaigns.jsonl").read_text().splitlines()]
+
+
+def _write_lines(out, lines, raw=None):
+    text = raw if raw is not None else "".join(json.dumps(line) + "\n" for line in lines)
+    (out / "campaigns.jsonl").write_bytes(text if isinstance(text, bytes) else text.encode())
+
+
+def _set(i, key, value):
+    def edit(lines):
+        lines[i][key] = value
+        return lines
+    return edit
+
+
+def _drop(i, key):
+    def edit(lines):
+        del lines[i][key]
+        return lines
+    return edit
+
+
+def _row(i, key, value=None, drop=False):
+    def edit(lines):
+        if drop:
+            del lines[i]["rows"][0][key]
+        else:
+            lines[i]["rows"][0][key] = value
+        return lines
+    return edit
+
+
+# name: (edit of the parsed lines, or a function of the file's text giving bytes; pattern of the message)
+RESUME_CASES = {
+    "not_utf8": (lambda text: text.encode()[:20] + b"\xff\xfe" + text.encode()[20:], r"UTF-8"),
+    "infinite_index": (lambda text: text.replace('"index": 1,', '"index": Infinity,', 1).encode(), r"line 2.*Infinity"),
+    "nan_estimate": (lambda text: text.replace('"estimate": 170.1', '"estimate": NaN', 1).encode(), r"line 1"),
+    "huge_index": (_set(1, "index", 1e300), r"line 2.*index"),
+    "index_not_its_seed": (_set(1, "index", 7), r"line 2.*campaign 7: seed"),  # a line moved to another index
+    "negative_index": (_set(1, "index", -1), r"line 2.*index"),
+    "index_text": (_set(1, "index", "1"), r"line 2.*index"),
+    "index_bool": (_set(1, "index", True), r"line 2.*index"),
+    "missing_status": (_drop(0, "status"), r"line 1.*'status'"),
+    "missing_rows": (_drop(2, "rows"), r"line 3.*'rows'"),
+    "missing_seed": (_drop(0, "seed"), r"line 1.*'seed'"),
+    "rows_not_list": (_set(0, "rows", {"a": 1}), r"line 1.*rows"),
+    "row_not_table": (_set(0, "rows", [3]), r"line 1.*rows\[0\]"),
+    "ok_row_without_estimate": (_row(0, "estimate", drop=True), r"line 1.*rows\[0\].*'estimate'"),
+    "ok_row_without_truth": (_row(0, "truth", drop=True), r"line 1.*rows\[0\].*'truth'"),
+    "row_estimate_text": (_row(0, "estimate", "big"), r"line 1.*rows\[0\].*estimate"),
+    "row_covered_text": (_row(0, "covered", "yes"), r"line 1.*rows\[0\].*covered"),
+    "row_parameter_missing": (_row(1, "parameter", drop=True), r"line 2.*rows\[0\].*'parameter'"),
+    "status_unknown": (_set(0, "status", "great"), r"line 1.*status"),
+    "seed_wrong": (_set(0, "seed", 12), r"line 1.*seed"),
+    "grid_point_wrong": (_set(0, "grid_point", 4), r"line 1.*grid_point"),
+    "n_records_negative": (_set(0, "n_records", -3), r"line 1.*n_records"),
+    "line_not_object": (lambda text: ("[1, 2]\n" + text).encode(), r"line 1.*JSON object"),
+}
+
+
+@pytest.mark.parametrize("name", list(RESUME_CASES))
+def test_resumed_campaigns_file_corpus(study_folder, capsys, name):
+    plan, out = study_folder
+    edit, pattern = RESUME_CASES[name]
+    text = (out / "campaigns.jsonl").read_text()
+    if edit.__code__.co_varnames[:1] == ("text",):
+        _write_lines(out, None, raw=edit(text))
+    else:
+        _write_lines(out, edit(_lines(out)))
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    code, err = _run(["study", plan, "--out", out, "--quiet", "--no-report"], capsys)
+    assert code == 2 and "campaigns.jsonl" in err and re.search(pattern, err), err
+    assert len(err.strip().splitlines()) == 1, err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before  # nothing rewritten
+

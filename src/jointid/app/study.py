@@ -365,6 +365,17 @@ def _check_campaign_size(simulation, vary, grid, source):
                             f"allowed (lower [acquisition] fs or periods)")
 
 
+MAX_LOCAL_JOBS = 64  # worker processes of a local cluster (each holds its own interpreter and tables)
+
+
+def check_study_jobs(jobs) -> int:
+    """``jobs`` of :func:`run_study`: an integer from 0 (one per core) to :data:`MAX_LOCAL_JOBS`."""
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or not 0 <= jobs <= MAX_LOCAL_JOBS:
+        raise ManifestError(f"--jobs (jobs) must be an integer from 0 (one per core) to {MAX_LOCAL_JOBS} worker "
+                            f"processes of a local cluster, got {jobs!r}; a larger cluster is given with --scheduler")
+    return int(jobs)
+
+
 def _plan_integer(study, key, default, low, high, source):
     v = study.get(key, default)
     if isinstance(v, bool) or not isinstance(v, int):
@@ -997,6 +1008,79 @@ def _tail_plan(tail: bytes):
     return m.group(1).decode() if m else None
 
 
+def _no_constant(name):
+    raise ValueError(f"{name} is not a number a campaign line holds (lines are written without NaN or infinities)")
+
+
+def _line_index(line, where) -> int:
+    if not isinstance(line, dict):
+        raise ManifestError(f"{where}: not a campaign line: a JSON object expected, got {type(line).__name__}")
+    if "index" not in line:
+        raise ManifestError(f"{where}: not a campaign line: no 'index'")
+    index = line["index"]
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < MAX_CAMPAIGNS:
+        raise ManifestError(f"{where}: not a campaign line: index must be an integer from 0 to {MAX_CAMPAIGNS - 1}, "
+                            f"got {index!r}")
+    return index
+
+
+_LINE_KEYS = ("index", "seed", "plan", "grid_point", "status", "error", "rows")
+_ROW_KEYS = ("parameter", "estimate", "stderr", "truth", "z", "covered")
+
+
+def _check_campaign_line(line, where, plan=None) -> None:
+    """The keys and values of a campaign line that a resumed study uses (see :func:`run_campaign`)."""
+    for k in _LINE_KEYS:
+        if k not in line:
+            raise ManifestError(f"{where}: not a campaign line: no {k!r}")
+    index = line["index"]
+
+    def bad(key, expected):
+        shown = repr(line.get(key))
+        raise ManifestError(f"{where}: campaign {index}: {key} must be {expected}, got "
+                            f"{shown if len(shown) <= 80 else shown[:77] + '...'}")
+
+    def count(v):
+        return isinstance(v, int) and not isinstance(v, bool) and v >= 0
+
+    if not count(line["seed"]) or (plan is not None and line["seed"] != plan.campaign_seed(index)):
+        bad("seed", "the campaign's seed from the plan" if plan is not None else "a non-negative integer")
+    n_points = len(plan.points) if plan is not None else None
+    gp = line["grid_point"]
+    if not (count(gp) and (n_points is None or gp == index % n_points)) and not (gp is None and line["status"] != "ok"):
+        bad("grid_point", f"index % {n_points} = {index % n_points}" if n_points else "a non-negative integer")
+    if line["status"] not in ("ok", "failed"):
+        bad("status", "'ok' or 'failed'")
+    if not (line["error"] is None or isinstance(line["error"], str)):
+        bad("error", "a string or null")
+    for k in ("n_records", "n_failed"):
+        if k in line and not count(line[k]):
+            bad(k, "a non-negative integer")
+    rows = line["rows"]
+    if not isinstance(rows, list):
+        bad("rows", "a list of comparison rows")
+    for j, r in enumerate(rows):
+        at = f"{where}: campaign {index}: rows[{j}]"
+        if not isinstance(r, dict):
+            raise ManifestError(f"{at}: a comparison row (JSON object) expected, got {r!r}"[:300])
+        for k in _ROW_KEYS:
+            if k not in r:
+                raise ManifestError(f"{at}: no {k!r}")
+        if not isinstance(r["parameter"], str):
+            raise ManifestError(f"{at}: parameter must be a string, got {r['parameter']!r}")
+        if not _finite(r["truth"]) or isinstance(r["truth"], bool):
+            raise ManifestError(f"{at}: truth must be a finite number, got {r['truth']!r}")
+        for k in ("estimate", "stderr", "z"):
+            if r[k] is not None and (isinstance(r[k], bool) or not _finite(r[k])):
+                raise ManifestError(f"{at}: {k} must be a finite number or null, got {r[k]!r}"[:300])
+        if r["covered"] is not None and not isinstance(r["covered"], bool):
+            raise ManifestError(f"{at}: covered must be true, false or null, got {r['covered']!r}"[:300])
+        ci = r.get("ci95")
+        if ci is not None and not (isinstance(ci, list) and len(ci) == 2 and all(
+                _finite(x) and not isinstance(x, bool) for x in ci)):
+            raise ManifestError(f"{at}: ci95 must be a pair of finite numbers or null, got {ci!r}"[:300])
+
+
 def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
     """The campaign lines of a results file, by index; the file is only read, never changed.
 
@@ -1023,14 +1107,15 @@ def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
         if not line_text.strip():
             continue
         try:
-            line = json.loads(line_text)
-            index = int(line["index"])
-        except (ValueError, KeyError, TypeError, OverflowError) as exc:
-            raise ManifestError(f"{path} [line {n}]: not a campaign line: {exc}") from exc
+            line = json.loads(line_text, parse_constant=_no_constant)
+        except (ValueError, RecursionError) as exc:
+            raise ManifestError(f"{path} [line {n}]: not a campaign line: {exc}") from None
+        index = _line_index(line, f"{path} [line {n}]")
         if plan is not None and line.get("plan") != plan.fingerprint:
             raise ManifestError(
                 f"{path} [line {n}]: campaign {index} was made by another plan (fingerprint {line.get('plan')}, "
                 f"this plan {plan.fingerprint}); write the study to another folder or remove the file")
+        _check_campaign_line(line, f"{path} [line {n}]", plan)
         out[index] = line
     if plan is not None and tail.strip():
         other = _tail_plan(tail)
@@ -1239,6 +1324,8 @@ def run_study(plan, out_dir, *, jobs=1, scheduler=None, client=None, progress=Fa
 
     clock = RunClock()
     code = code_fingerprint()
+    if client is None and scheduler is None:
+        check_study_jobs(jobs)
     if not isinstance(plan, StudyPlan):
         plan = StudyPlan.from_mapping(plan) if isinstance(plan, dict) else load_study_plan(plan)
     out = Path(out_dir)
