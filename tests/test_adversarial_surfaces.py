@@ -277,3 +277,99 @@ def test_resumed_campaigns_file_corpus(study_folder, capsys, name):
     assert len(err.strip().splitlines()) == 1, err
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before  # nothing rewritten
 
+
+
+# ------------------------------------------------------------------------------ backbone
+@pytest.fixture(scope="module")
+def results_json(tmp_path_factory):
+    """A real results.json of a small identified campaign (the parsed dict)."""
+    from jointid.app.paper_example import paper_config
+    from jointid.app.synthesis import load_simulation_config, simulate_campaign
+
+    root = tmp_path_factory.mktemp("res")
+    cfg = paper_config(n_frequencies=7, fs=2000.0, periods=15, noise=0.01, seed=7)
+    simulate_campaign(load_simulation_config(cfg), root / "camp")
+    assert main(["identify", str(root / "camp"), "--out", str(root / "res"), "--quiet", "--figures", "none"]) == 0
+    return json.loads((root / "res" / "results.json").read_text())
+
+
+def _model(key, value=None, drop=False):
+    def edit(r):
+        if drop:
+            del r["models"][0][key]
+        else:
+            r["models"][0][key] = value
+        return r
+    return edit
+
+
+def _saved(key, value):
+    def edit(r):
+        r["backbones"]["preloads"][0][key] = value
+        return r
+    return edit
+
+
+# name: (edit of the parsed results, pattern of the message: the JSON path of the bad entry)
+BACKBONE_CASES = {
+    "list": (lambda r: [r], r"JSON object expected, got list"),
+    "null": (lambda r: None, r"JSON object expected, got null"),
+    "number": (lambda r: 3, r"JSON object expected, got int"),
+    "models_text": (lambda r: {**r, "models": "abc"}, r"models: a list"),
+    "model_not_object": (lambda r: {**r, "models": [3]}, r"models\[0\]: a model"),
+    "model_without_terms": (lambda r: {**r, "models": [{k: v for k, v in r["models"][0].items() if k != "terms"}],
+                                       "backbones": None}, r"models\[0\]: no 'terms'"),
+    "parameters_short": (lambda r: _model("parameters", r["models"][0]["parameters"][:2])(r),
+                         r"models\[0\]\.parameters: 2 values"),
+    "parameters_text": (_model("parameters", ["a", "b", "c", "d", "e"]), r"models\[0\]\.parameters"),
+    "parameters_inf": (lambda r: _model("parameters", [1e400] + r["models"][0]["parameters"][1:])(r),
+                       r"models\[0\]\.parameters"),
+    "covariance_1x1": (_model("covariance", [[1.0]]), r"models\[0\]\.covariance: a 5 x 5"),
+    "covariance_text": (_model("covariance", "big"), r"models\[0\]\.covariance"),
+    "law_unknown_term": (_model("amplitude_laws", {"zz": 2}), r"models\[0\]\.amplitude_laws: 'zz'"),
+    "law_order_50": (_model("amplitude_laws", {"c": 50}), r"models\[0\]\.amplitude_laws\.c: an order"),
+    "law_order_text": (_model("amplitude_laws", {"c": "two"}), r"models\[0\]\.amplitude_laws\.c"),
+    "laws_list": (_model("amplitude_laws", [2]), r"models\[0\]\.amplitude_laws"),
+    "terms_number": (_model("terms", 3), r"models\[0\]\.terms"),
+    "terms_unknown": (_model("terms", ["q", "foo"]), r"models\[0\]\.terms"),
+    "preload_list": (_model("preload", [1, 2]), r"models\[0\]\.preload"),
+    "q_max_range_text": (_model("q_max_range", "wide"), r"models\[0\]\.q_max_range"),
+    "backbones_text": (lambda r: {**r, "backbones": "x"}, r"backbones: a JSON object"),
+    "preloads_text": (lambda r: {**r, "backbones": {"preloads": "abc"}}, r"backbones\.preloads: a list"),
+    "preload_entry_number": (lambda r: {**r, "backbones": {"preloads": [5]}}, r"backbones\.preloads\[0\]"),
+    "saved_model_text": (_saved("model", "curve"), r"backbones\.preloads\[0\]\.model"),
+    "saved_amplitude_text": (_saved("stepped_sine", {"amplitude": ["a"], "omega": [1.0], "zeta": [0.1]}),
+                             r"backbones\.preloads\[0\]\.stepped_sine\.amplitude"),
+    "saved_lengths_differ": (_saved("stepped_sine", {"amplitude": [1.0, 2.0], "omega": [1.0], "zeta": [0.1, 0.2],
+                                                     "omega_stderr": [0.1, 0.1], "zeta_stderr": [0.1, 0.1]}),
+                             r"backbones\.preloads\[0\]\.stepped_sine\.omega: 1 values"),
+    "saved_ringdown_text": (_saved("ringdown", "x"), r"backbones\.preloads\[0\]\.ringdown"),
+}
+
+
+@pytest.mark.parametrize("name", list(BACKBONE_CASES))
+def test_backbone_results_corpus(results_json, tmp_path, capsys, name):
+    import copy
+
+    edit, pattern = BACKBONE_CASES[name]
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(edit(copy.deepcopy(results_json))))
+    out = tmp_path / "bb"
+    code, err = _run(["backbone", path, "--out", out, "--quiet"], capsys)
+    assert code == 2 and str(path) in err and re.search(pattern, err), err
+    assert len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_backbone_of_the_untouched_results_is_drawn(results_json, tmp_path, capsys):
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(results_json))
+    code, err = _run(["backbone", path, "--out", tmp_path / "bb", "--quiet"], capsys)
+    assert code == 0 and list((tmp_path / "bb").glob("backbone_*.png")), err
+
+
+def test_backbone_results_not_utf8(tmp_path, capsys):
+    path = tmp_path / "results.json"
+    path.write_bytes(b'{"models": "\xff\xfe"}')
+    code, err = _run(["backbone", path, "--out", tmp_path / "bb", "--quiet"], capsys)
+    assert code == 2 and str(path) in err and not (tmp_path / "bb").exists(), err

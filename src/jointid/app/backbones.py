@@ -25,13 +25,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import JointidError, JointidWarning, RecordError, where
+from ..errors import JointidError, JointidWarning, ManifestError, RecordError, where
 from ..identify.backbone import Backbone, equivalent_linearisation, model_backbone, phase_resonance_points
 from ..identify.jointlaw import JointModes, fit_joint_laws
 from ..signal.ringdown import fit_decay
 
 __all__ = ["PreloadBackbones", "CampaignBackbones", "preload_model_backbone", "ringdown_decay",
-           "backbone_from_campaign", "campaign_backbones", "backbones_from_results", "write_backbone_figures"]
+           "backbone_from_campaign", "campaign_backbones", "backbones_from_results", "check_results_for_backbones",
+           "write_backbone_figures"]
 
 
 def preload_model_backbone(model, amplitudes=None, n_points=40, n_harmonics=1, label="") -> Backbone:
@@ -340,6 +341,143 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
     return CampaignBackbones(tuple(preloads))
 
 
+MAX_LAW_ORDER = 10  # the largest damping order identify fits (IdentifySettings.damping_order)
+MAX_TERMS = 50
+MAX_POINTS = 100_000  # points of a saved backbone
+
+
+def _shown(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 80 else r[:77] + "..."
+
+
+def _is_num(v, allow_null=False) -> bool:
+    if v is None:
+        return allow_null
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+def _check_saved_backbone(d, at):
+    """A saved backbone (``Backbone.summary()``): equal-length lists of numbers (null: not measured)."""
+    if not isinstance(d, dict):
+        raise ManifestError(f"{at}: a backbone (JSON object) expected, got {_shown(d)}")
+    n = None
+    for k in ("amplitude", "omega", "zeta", "omega_stderr", "zeta_stderr", "amplitude_stderr"):
+        v = d.get(k)
+        if v is None and k in ("amplitude_stderr", "omega_stderr", "zeta_stderr"):
+            continue
+        if not isinstance(v, list) or len(v) > MAX_POINTS or not all(_is_num(x, allow_null=True) for x in v):
+            raise ManifestError(f"{at}.{k}: a list of numbers (null: none) expected, got {_shown(v)}")
+        if n is not None and len(v) != n and v:
+            raise ManifestError(f"{at}.{k}: {len(v)} values, but the backbone has {n} points")
+        n = len(v) if n is None else n
+    for k in ("label", "source"):
+        if k in d and not isinstance(d[k], str):
+            raise ManifestError(f"{at}.{k}: a string expected, got {_shown(d[k])}")
+    if d.get("meta") is not None and not isinstance(d["meta"], dict):
+        raise ManifestError(f"{at}.meta: a JSON object expected, got {_shown(d['meta'])}")
+
+
+def _check_model_entry(m, at):
+    """A ``models`` entry that gives a backbone: terms, laws, parameters and covariance that fit together."""
+    from ..identify.model import law_size
+    from ..identify.powerlaw import is_power
+    from ..identify.terms import library
+
+    terms = m.get("terms")
+    if not (isinstance(terms, str) or (isinstance(terms, list) and terms and all(isinstance(t, str) for t in terms))) \
+            or (isinstance(terms, list) and len(terms) > MAX_TERMS):
+        raise ManifestError(f"{at}.terms: a list of up to {MAX_TERMS} term names expected, got {_shown(terms)}")
+    try:
+        lib = library(terms)
+    except Exception as exc:  # noqa: BLE001 - any parse failure of user data is a bad entry
+        raise ManifestError(f"{at}.terms: not a term library: {exc}") from None
+    laws = m.get("amplitude_laws") or {}
+    if not isinstance(laws, dict):
+        raise ManifestError(f"{at}.amplitude_laws: a JSON object of term -> order expected, got {_shown(laws)}")
+    orders = {}
+    for k, v in laws.items():
+        try:
+            coefficient = lib[k].coefficient
+        except (KeyError, IndexError, TypeError):
+            raise ManifestError(f"{at}.amplitude_laws: {k!r} is no term of the model "
+                                f"({', '.join(t.name for t in lib)})") from None
+        if not (is_power(v) or (isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_LAW_ORDER)):
+            raise ManifestError(f"{at}.amplitude_laws.{k}: an order from 0 to {MAX_LAW_ORDER} or \"power\" "
+                                f"expected, got {_shown(v)}")
+        orders[coefficient] = v
+    n = sum(law_size(orders.get(t.coefficient, 0)) for t in lib)
+    params = m.get("parameters")
+    if not isinstance(params, list) or not all(_is_num(x) for x in params):
+        raise ManifestError(f"{at}.parameters: a list of finite numbers expected, got {_shown(params)}")
+    if len(params) != n:
+        raise ManifestError(f"{at}.parameters: {len(params)} values, but terms and amplitude_laws give {n}")
+    cov = m.get("covariance")
+    if cov is not None and not (isinstance(cov, list) and len(cov) == n and all(
+            isinstance(row, list) and len(row) == n and all(_is_num(x, allow_null=True) for x in row) for row in cov)):
+        shape = f"{len(cov)} rows" if isinstance(cov, list) else type(cov).__name__
+        raise ManifestError(f"{at}.covariance: a {n} x {n} matrix of numbers (or null) expected, got {shape}")
+    rng = m.get("q_max_range")
+    if rng is not None and not (isinstance(rng, list) and len(rng) == 2 and all(_is_num(x, allow_null=True) for x in rng)):
+        raise ManifestError(f"{at}.q_max_range: a pair [low, high] expected, got {_shown(rng)}")
+
+
+def _check_label(v, at):
+    if not (v is None or isinstance(v, str) or _is_num(v)):
+        raise ManifestError(f"{at}: a preload label (string or number) expected, got {_shown(v)}")
+
+
+def check_results_for_backbones(results, source="results.json") -> None:
+    """The parts of a ``results.json`` that :func:`backbones_from_results` reads, checked like a manifest.
+
+    Raises
+    ------
+    jointid.errors.ManifestError
+        Naming the file and the JSON path of the bad entry (``models[0].parameters``).
+    """
+    if not isinstance(results, dict):
+        raise ManifestError(f"{source}: not a results.json of jointid: a JSON object expected, got "
+                            f"{type(results).__name__ if results is not None else 'null'}")
+    models = results.get("models")
+    if models is not None and not isinstance(models, list):
+        raise ManifestError(f"{source}: models: a list expected, got {_shown(models)}")
+    for j, m in enumerate(models or []):
+        at = f"{source}: models[{j}]"
+        if not isinstance(m, dict):
+            raise ManifestError(f"{at}: a model (JSON object) expected, got {_shown(m)}")
+        _check_label(m.get("preload"), f"{at}.preload")
+        if m.get("parameters") is None:
+            continue  # a preload that was not identified
+        if "terms" not in m:
+            continue  # a first-harmonic model: its backbone is the saved one (checked below)
+        _check_model_entry(m, at)
+    bb = results.get("backbones")
+    if bb is not None and not isinstance(bb, dict):
+        raise ManifestError(f"{source}: backbones: a JSON object expected, got {_shown(bb)}")
+    preloads = (bb or {}).get("preloads")
+    if preloads is not None and not isinstance(preloads, list):
+        raise ManifestError(f"{source}: backbones.preloads: a list expected, got {_shown(preloads)}")
+    for j, e in enumerate(preloads or []):
+        at = f"{source}: backbones.preloads[{j}]"
+        if not isinstance(e, dict):
+            raise ManifestError(f"{at}: a JSON object expected, got {_shown(e)}")
+        _check_label(e.get("preload"), f"{at}.preload")
+        for k in ("model", "stepped_sine", "phase_resonance"):
+            if e.get(k):
+                _check_saved_backbone(e[k], f"{at}.{k}")
+        ring = e.get("ringdown")
+        if ring is not None and not isinstance(ring, list):
+            raise ManifestError(f"{at}.ringdown: a list expected, got {_shown(ring)}")
+        for i, d in enumerate(ring or []):
+            _check_saved_backbone(d, f"{at}.ringdown[{i}]")
+    for j, m in enumerate(models or []):
+        if isinstance(m, dict) and m.get("parameters") is not None and "terms" not in m and not any(
+                isinstance(e, dict) and e.get("preload") == m.get("preload") and e.get("model")
+                for e in preloads or []):
+            raise ManifestError(f"{source}: models[{j}]: no 'terms' and no saved model backbone of preload "
+                                f"{m.get('preload')!r} under backbones.preloads")
+
+
 def backbones_from_results(results, n_points=40, n_harmonics=1) -> CampaignBackbones:
     """The backbones of a saved identification (``results.json`` path or its parsed dict).
 
@@ -358,8 +496,11 @@ def backbones_from_results(results, n_points=40, n_harmonics=1) -> CampaignBackb
             from ..errors import RecordFileNotFoundError
 
             raise RecordFileNotFoundError(f"{path}: no such results file") from None
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, RecursionError) as exc:
             raise RecordError(f"{path}: not a readable results.json ({exc})") from None
+        check_results_for_backbones(results, str(path))
+    else:
+        check_results_for_backbones(results, "results")
     saved = {}
     for entry in ((results.get("backbones") or {}).get("preloads") or []):
         saved[entry.get("preload")] = entry
