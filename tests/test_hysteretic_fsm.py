@@ -214,7 +214,7 @@ def test_monte_carlo_jenkins_standard_errors(jenkins_data):
 
 @pytest.mark.slow
 def test_monte_carlo_iwan_standard_errors(iwan_data):
-    z, names = _mc(iwan_data, "iwan4", 30, 6, n_sliders=60, phi_min_ratio=1e-4)
+    z, names = _mc(iwan_data, "iwan4", 50, 6, n_sliders=60, phi_min_ratio=1e-4)
     sd = z.std(axis=0, ddof=1)
     print(dict(zip(names, np.round(sd, 3))), dict(zip(names, np.round(z.mean(axis=0), 3))))
     assert np.all((sd > 0.8) & (sd < 1.25)), dict(zip(names, sd))
