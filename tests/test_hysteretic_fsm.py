@@ -205,7 +205,7 @@ def _mc(data, law, n, seed, **kw):
 
 @pytest.mark.slow
 def test_monte_carlo_jenkins_standard_errors(jenkins_data):
-    z, names = _mc(jenkins_data, "jenkins", 40, 5)
+    z, names = _mc(jenkins_data, "jenkins", 100, 5)
     sd = z.std(axis=0, ddof=1)
     print(dict(zip(names, np.round(sd, 3))), dict(zip(names, np.round(z.mean(axis=0), 3))))
     assert np.all((sd > 0.8) & (sd < 1.25)), dict(zip(names, sd))
