@@ -10,6 +10,7 @@ Nyquist, which a kinked joint force keeps, are small enough not to alias onto th
 generator's own error below a tenth of the standard errors (checked on clean data).
 """
 
+import json
 import math
 import warnings
 
@@ -145,6 +146,7 @@ def test_jenkins_campaign_recovers_its_parameters(jenkins_data):
     assert 0.5 < res.residual_rms < 1.5
     s = res.summary()
     assert set(s["parameters"]) == set(res.names) and s["law"] == "jenkins"
+    json.dumps(s)  # JSON-safe
     assert "Fs" in res.report() and "95 %" in res.report()
 
 
