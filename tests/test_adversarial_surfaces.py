@@ -143,6 +143,13 @@ PLAN_CASES = {
                             _sub('"acquisition.noise" = { loguniform = [0.002, 0.02] }',
                                  '"acquisition.noise" = { uniform = [-0.5, 0.02] }'), r"acquisition.noise"),
     "campaign_not_table": (lambda t: "campaign = [1, 2]\n" + t, r"\[campaign\].*table"),
+    "campaign_records_huge": (lambda t: _add("vary", '"excitation.force_levels" = { uniform = [0.4, 2.0], size = [2, 50] }')(
+        t.replace("n_frequencies = 5", "n_frequencies = 1000")), r"50 force level.*1000 frequencies.*records"),
+    "frequencies_hz_tiny_drawn": (_add("vary", '"excitation.frequencies_hz" = { uniform = [1e-6, 30.0], size = 3 }'),
+                                  r"samples"),
+    "integer_key_uniform": (_add("vary", '"excitation.n_frequencies" = { uniform = [3.0, 9.0] }'),
+                            r"excitation.n_frequencies.*use integers"),
+    "vary_table_key": (_add("vary", '"model.coefficients" = { uniform = [1.0, 2.0] }'), r"model.coefficients"),
 }
 
 

@@ -332,10 +332,14 @@ def _candidates(simulation, vary, grid, path, counts=False):
         kind = next(k for k in spec if k in _DISTRIBUTIONS)
         args = spec[kind]
         size = spec.get("size")
-        if size is not None:
-            out.append([abs(a) for a in args] * (size if isinstance(size, int) else size[1]))
+        ends = list(args) if kind != "normal" else [args[0]]
+        if spec.get("random_sign"):
+            ends = [abs(a) if _is_number(a) else a for a in ends]
+        if size is not None:  # a list of up to `most` draws between the ends
+            most = size if isinstance(size, int) else size[1]
+            out.append([ends[min(j, len(ends) - 1)] for j in range(most)] if counts else ends)
         else:
-            out.extend(args if kind != "normal" else [args[0]])
+            out.extend(ends)
     if counts:
         return [len(v) for v in out if isinstance(v, list)]
     return [v for v in out if _is_number(v)] + [x for v in out if isinstance(v, list) for x in v if _is_number(x)]
