@@ -260,3 +260,17 @@ def test_prediction_of_held_out_levels(name):
               f"f {fh / ft - 1:+.2e} a {ah / at - 1:+.2e}")
         assert abs(ff / ft - 1) < tol_f and abs(af / at - 1) < tol_a
         assert abs(fh / ft - 1) < tol_f and abs(ah / at - 1) < tol_a
+
+
+def test_first_harmonic_response_of_a_linear_oscillator_and_a_jenkins_fold():
+    from jointid.identify.hysteretic import first_harmonic_response
+
+    stuck = Jenkins(1000.0, 1e6)
+    kk = K + 1000.0
+    for w in (0.9 * math.sqrt(kk), math.sqrt(kk), 1.05 * math.sqrt(kk)):
+        a = first_harmonic_response(K, C, stuck, 1.0, w)
+        assert a.size == 1 and a[0] == pytest.approx(1.0 / math.hypot(kk - w * w, C * w), rel=1e-10)
+    # the peak of the Jenkins oscillator is a root of the response at the peak frequency
+    f, ap = first_harmonic_peak(K, C, JENKINS, 14.0)
+    roots = first_harmonic_response(K, C, JENKINS, 14.0, 2 * np.pi * f)
+    assert np.min(np.abs(roots / ap - 1)) < 1e-3

@@ -42,7 +42,7 @@ from ..errors import IdentificationError, IllConditionedWarning
 from ..joints import Iwan4, Jenkins
 from ..signal.harmonics import StateSignals
 
-__all__ = ["HystereticForceStateMapping", "HystereticFit", "LAWS"]
+__all__ = ["HystereticForceStateMapping", "HystereticFit", "LAWS", "first_harmonic_peak", "first_harmonic_response"]
 
 #: Joint laws this estimator fits.
 LAWS = ("jenkins", "iwan4")
@@ -341,6 +341,35 @@ def first_harmonic_peak(k, c, law, force_amplitude):
     except (RuntimeError, ValueError) as exc:
         raise IdentificationError(f"no peak found at force amplitude {Q:g}: {exc}") from None
     return best(a)[1] / (2 * np.pi), a
+
+
+def first_harmonic_response(k, c, law, force_amplitude, omega, a_range=None, n_grid=400):
+    """Steady-state first-harmonic amplitudes at one forcing frequency ``omega`` [rad/s], every branch.
+
+    The roots ``a`` of ``a^2 ((K(a) - omega^2)^2 + (c omega + L(a))^2) = Q^2`` (see
+    :func:`first_harmonic_peak`), located on a logarithmic grid of amplitudes over ``a_range``
+    (default ``Q / (k + K_T) * 1e-3`` to ``Q / (c omega) * 2``, the largest possible) and refined by
+    Brent's method; increasing order.  Three roots mean a fold: the middle one is unstable.
+    Pick the branch of a measured dwell by the root nearest its amplitude.
+    """
+    Q, w = float(force_amplitude), float(omega)
+
+    def g(a):
+        k_eq, k_loss = law.first_harmonic(a)
+        K, L = k + float(k_eq), float(k_loss)
+        return a * a * ((K - w * w) ** 2 + (c * w + L) ** 2) - Q * Q
+
+    if a_range is None:
+        hi = 2.0 * Q / max(c * w, 1e-300)
+        lo = hi * 1e-7
+    else:
+        lo, hi = (float(x) for x in a_range)
+    grid = np.geomspace(lo, hi, int(n_grid))
+    vals = np.array([g(a) for a in grid])
+    out = []
+    for i in np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0):
+        out.append(optimize.brentq(g, grid[i], grid[i + 1], xtol=1e-300, rtol=1e-13))
+    return np.array(out)
 
 
 class HystereticForceStateMapping:
