@@ -71,8 +71,8 @@ def test_reprediction_quotes_no_peak_the_dwells_do_not_resolve(unesp):
     assert g["peak_resolved"] is False and g["peak_bracketed"] is True
     assert g["peak_frequency_error_percent"] is None and g["peak_amplitude_error_percent"] is None
     assert "do not resolve the peak" in g["peak_status"]
-    line = next(x for x in out.splitlines() if "preload 5, F = 0.15:" in x and "peak" in x)
-    assert "no peak error" in line and not re.search(r"\([+-]\d+\.\d+ %\)", line), line
+    line = next(x for x in out.splitlines() if "preload 5, F = 0.15 V:" in x and "peak" in x)  # a voltage level
+    assert "no peak error" in line and "not resolved by the dwells" in line and not re.search(r"\([+-]\d+\.\d+ %\)", line), line
 
 
 def test_model_that_does_not_fit_is_said_and_exits_1(unesp):

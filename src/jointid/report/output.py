@@ -217,8 +217,8 @@ def _reprediction_table(summary) -> list:
         key = (str(d.get("preload")), str(d.get("force_level")))
         loop = loops.get(key, {})
         resolved = d.get("peak_resolved")
-        peak = (lambda v: format_percent(v, 3, sign=True)) if resolved is not False else (
-            lambda v: "not bracketed by the dwells")
+        why = "not bracketed by the dwells" if d.get("peak_bracketed") is False else "not resolved by the dwells"
+        peak = (lambda v: format_percent(v, 3, sign=True)) if resolved is not False else (lambda v: why)
         lrms = (loop.get("filtered") or {}).get("rms_difference")
         rows.append({
             "preload": key[0], F: format_value(d.get("force_level")),

@@ -160,7 +160,7 @@ def campaign_report(result) -> str:
         for r in reps:
             peak = (f"peak frequency error {r['peak frequency error [%]']}, peak magnitude error "
                     f"{r['peak magnitude error [%]']}" if r["peak resolved by the dwells"] is not False
-                    else "peak not bracketed by the dwells: no peak error")
+                    else f"peak {r['peak frequency error [%]']}: no peak error")
             out.append(f"  preload {r['preload']}, F = {r[f'F [{Fu}]']} {Fu}: {peak}, rms error at the measured "
                        f"dwells {r['rms error at the measured dwells [%]']}")
     for row in getattr(result, "loops", ()):
