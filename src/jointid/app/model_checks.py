@@ -125,7 +125,7 @@ def identify_auto(campaign, settings):
         first = identify_campaign(campaign, replace(settings, terms=" + ".join(SEED_TERMS), repredict=False))
     selections, errors = campaign_selection(first)
     for e in errors.values():
-        warnings.warn(e, JointidWarning, stacklevel=3)
+        warnings.warn(e, JointidWarning, stacklevel=5)  # past _identify_campaign, identify_campaign, its wrapper
     terms = _union_terms(selections)
     result = identify_campaign(campaign, replace(settings, terms=terms, repredict=False))
     models = dict(result.models)

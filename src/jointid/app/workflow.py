@@ -320,6 +320,11 @@ def summary_warning(notes, n_records, stacklevel=2):
                   stacklevel=stacklevel + 1)
 
 
+#: stacklevel of a warning issued in :func:`_identify_campaign` that points at the caller's line:
+#: past _identify_campaign, identify_campaign and its single-threaded wrapper
+_CALLER = 4
+
+
 @single_threaded
 def identify_campaign(campaign, settings: IdentifySettings | None = None, **kw) -> CampaignResult:
     """Identify every record of a campaign, then the groups and the laws.
@@ -371,7 +376,7 @@ def _identify_campaign(campaign, settings: IdentifySettings | None = None, **kw)
 
     outcomes, delay, delay_error = correct_channel_delay(outcomes, settings, use)
     if delay_error:
-        warnings.warn(f"channel delay not estimated: {delay_error}", JointidWarning, stacklevel=3)
+        warnings.warn(f"channel delay not estimated: {delay_error}", JointidWarning, stacklevel=_CALLER)
     use = [o.ok if settings.keep_flagged else o.usable for o in outcomes]  # after the correction
     # every message is kept on its record (results.json); the call ends with one summary warning
     notes = [(w, category) for o in outcomes for w, category in zip(o.warnings, o.warning_types)]
@@ -498,7 +503,7 @@ def _identify_campaign(campaign, settings: IdentifySettings | None = None, **kw)
                 perr = perr or f"preload {g.preload}, force level {g.force_level}: {exc}"
         final_groups.append(replace(g, power_law=power, power_law_error=perr))
 
-    summary_warning(notes, len(outcomes), stacklevel=3)  # 3: past the single-threaded wrapper
+    summary_warning(notes, len(outcomes), stacklevel=_CALLER)
     result = CampaignResult(
         campaign.name, str(campaign.root), settings, tuple(outcomes), tuple(final_groups), laws, law_errors,
         models=models, model_errors=model_errors,
@@ -509,7 +514,7 @@ def _identify_campaign(campaign, settings: IdentifySettings | None = None, **kw)
     result = replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
     for a in adequacy.values():
         if a is not None and a.adequate is False:
-            warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=3)
+            warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=_CALLER)
     if settings.repredict:
         from .reprediction import with_repredictions
 
