@@ -149,6 +149,8 @@ PLAN_CASES = {
                                   r"samples"),
     "integer_key_uniform": (_add("vary", '"excitation.n_frequencies" = { uniform = [3.0, 9.0] }'),
                             r"excitation.n_frequencies.*use integers"),
+    "normal_beyond_bounds": (_sub('"acquisition.noise" = { loguniform = [0.002, 0.02] }',
+                                  '"acquisition.noise" = { normal = [0.01, 0.01] }'), r"acquisition.noise.*normal mean"),
     "vary_table_key": (_add("vary", '"model.coefficients" = { uniform = [1.0, 2.0] }'), r"model.coefficients"),
 }
 

@@ -305,13 +305,13 @@ def _check_draw_against_key(path, spec, source):
         raise ManifestError(f"{where}: {kind} draws numbers, but the key takes {_describe(target)}")
     if target[0] == "int" and kind != "integers":
         raise ManifestError(f"{where}: {kind} draws fractions, but the key takes {_describe(target)}; use integers")
-    ends = list(args) if kind != "normal" else [args[0]]
+    ends = list(args) if kind != "normal" else [args[0] - 5 * args[1], args[0] + 5 * args[1]]
     if spec.get("random_sign"):
         ends += [-a for a in ends]
     for a in ends:
         if kind == "integers" and target[0] == "int":
             a = int(a)
-        _check_value(target, a, f"{where}: {kind} bound")
+        _check_value(target, a, f"{where}: {kind} {'mean +- 5 std' if kind == 'normal' else 'bound'}")
 
 
 def _candidates(simulation, vary, grid, path, counts=False):
@@ -597,6 +597,9 @@ class StudyPlan:
                 drawn[path] = value
             for path, spec in self.vary:
                 drawn[path] = _draw(spec, rng)
+                target = _path_spec(path)
+                if target is not None and target[0] != "none":  # a normal draw beyond 5 std: this campaign fails
+                    _check_value(target, drawn[path], f"[vary] {path!r} drew")
                 _set_path(tables, path, drawn[path])
         except ManifestError as exc:
             raise ManifestError(f"{self.source}: {exc}") from exc
