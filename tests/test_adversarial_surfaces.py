@@ -151,6 +151,14 @@ PLAN_CASES = {
                             r"excitation.n_frequencies.*use integers"),
     "normal_beyond_bounds": (_sub('"acquisition.noise" = { loguniform = [0.002, 0.02] }',
                                   '"acquisition.noise" = { normal = [0.01, 0.01] }'), r"acquisition.noise.*normal mean"),
+    "identify_terms_number": (_sub("terms = \"q - q^3 + q'\"", "terms = 5"), r"\[identify\] terms"),
+    "identify_terms_unknown": (_sub("terms = \"q - q^3 + q'\"", "terms = \"q + foo\""), r"\[identify\] terms.*foo"),
+    "identify_terms_no_stiffness": (_sub("terms = \"q - q^3 + q'\"", "terms = \"q' + q^3\""),
+                                    r"\[identify\] terms.*linear stiffness"),
+    "identify_delay_inf": (_add("identify", "channel_delay = inf"), r"\[identify\] channel_delay"),
+    "identify_delay_text": (_add("identify", 'channel_delay = "x"'), r"\[identify\] channel_delay"),
+    "identify_flag_text": (_add("identify", 'repredict = "no"'), r"\[identify\] repredict"),
+    "identify_flag_number": (_add("identify", "keep_flagged = 3"), r"\[identify\] keep_flagged"),
     "vary_table_key": (_add("vary", '"model.coefficients" = { uniform = [1.0, 2.0] }'), r"model.coefficients"),
 }
 

@@ -369,6 +369,31 @@ def _check_campaign_size(simulation, vary, grid, source):
                             f"allowed (lower [acquisition] fs or periods)")
 
 
+def _check_identify_table(ident, source):
+    """Values of ``[identify]`` that IdentifySettings takes without a check: the terms, the flags, the delay."""
+    from ..identify.terms import library
+    from .model_checks import is_auto
+
+    terms = ident.get("terms", "q + -q^3 + q'")
+    if not isinstance(terms, str):
+        raise ManifestError(f"{source}: [identify] terms must be a string such as \"q - q^3 + q'\", got {terms!r}")
+    if not is_auto(terms):
+        try:
+            names = library(terms).names
+        except Exception as exc:  # noqa: BLE001 - any parse failure of the plan's text is a bad key
+            raise ManifestError(f"{source}: [identify] terms {terms!r}: {exc}") from None
+        if "q" not in names:
+            raise ManifestError(f"{source}: [identify] terms {terms!r} have no linear stiffness term 'q' (omega1 is "
+                                f"its coefficient)")
+    for k in ("refine_frequency", "repredict", "keep_flagged"):
+        if k in ident and not isinstance(ident[k], bool):
+            raise ManifestError(f"{source}: [identify] {k} must be true or false, got {ident[k]!r}")
+    delay = ident.get("channel_delay")
+    if not (delay is None or delay == "estimate" or (_is_number(delay) and math.isfinite(delay))):
+        raise ManifestError(f"{source}: [identify] channel_delay must be \"estimate\" or a finite number of seconds, "
+                            f"got {delay!r}")
+
+
 MAX_LOCAL_JOBS = 64  # worker processes of a local cluster (each holds its own interpreter and tables)
 
 
@@ -493,6 +518,7 @@ class StudyPlan:
         for k in ident:
             if k not in _settings_names():
                 raise ManifestError(f"{source}: [identify] {unknown_key_message(k, _settings_names())}")
+        _check_identify_table(ident, source)
         try:
             settings = IdentifySettings(**ident)
         except (TypeError, ValueError) as exc:
