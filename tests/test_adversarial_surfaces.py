@@ -275,6 +275,8 @@ RESUME_CASES = {
     "seed_wrong": (_set(0, "seed", 12), r"line 1.*seed"),
     "grid_point_wrong": (_set(0, "grid_point", 4), r"line 1.*grid_point"),
     "n_records_negative": (_set(0, "n_records", -3), r"line 1.*n_records"),
+    "duplicate_other_outcome": (lambda lines: lines + [{**lines[0], "status": "failed", "rows": [],
+                                                         "error": "campaign 0: x"}], r"line 4.*campaign 0.*line 1"),
     "line_not_object": (lambda text: ("[1, 2]\n" + text).encode(), r"line 1.*JSON object"),
 }
 

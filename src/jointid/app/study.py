@@ -1131,7 +1131,7 @@ def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
         return {}
     data = path.read_bytes()
     tail = _torn_tail(data)
-    out = {}
+    out, first = {}, {}
     try:
         text = data[:len(data) - len(tail)].decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -1149,6 +1149,10 @@ def read_campaign_lines(path, plan: StudyPlan | None = None) -> dict:
                 f"{path} [line {n}]: campaign {index} was made by another plan (fingerprint {line.get('plan')}, "
                 f"this plan {plan.fingerprint}); write the study to another folder or remove the file")
         _check_campaign_line(line, f"{path} [line {n}]", plan)
+        if index in out and out[index] != line:  # the same line twice is harmless; two outcomes of one campaign are not
+            raise ManifestError(f"{path} [line {n}]: campaign {index} is already on line {first[index]} with another "
+                                f"outcome: the file mixes runs; write the study to another folder")
+        first.setdefault(index, n)
         out[index] = line
     if plan is not None and tail.strip():
         other = _tail_plan(tail)
