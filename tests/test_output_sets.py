@@ -288,3 +288,18 @@ def test_demo_killed_midway_is_undone_by_the_next_run(tmp_path, monkeypatch):
     (out / MARKER).write_text(marker_text("r1", "demo", (), state="writing", pid=dead_pid))
     remove_leftovers(out)
     assert _tree(out) == before and not prev.exists()
+
+
+def test_interrupt_after_the_set_is_written_says_the_new_set_is_in_place(campaign, tmp_path, capsys, monkeypatch):
+    """Ctrl-C while identify prints its tables: the new set is already in place, and the message says so."""
+    import jointid.cli as cli
+
+    def interrupted(args, result):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_identify_console", interrupted)
+    out = tmp_path / "res"
+    assert main(["identify", str(campaign), "--out", str(out)] + FAST) == 130
+    err = capsys.readouterr().err
+    assert "the new output set was complete and is in" in err and "left as they were" not in err
+    assert read_marker(out)["kind"] == "identify" and (out / "results.json").is_file()

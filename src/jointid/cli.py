@@ -334,11 +334,19 @@ def _identify(args) -> int:
           + "backbones")
     level = "none" if args.no_figures else args.figures
     paths = write_results(result, args.out, figures={"none": False, "summary": "summary", "all": True}[level])
-    n_figures = len(paths.get("figures") or [])
-    drawn = {"none": "no figures (--figures summary|all draws them)",
-             "summary": f"{n_figures} figures of the preloads (--figures all adds each group's)",
-             "all": f"{n_figures} figures"}[level]
-    stage(f"written: results.json, CSV tables, report.txt, report.html, {drawn}")
+    try:
+        n_figures = len(paths.get("figures") or [])
+        drawn = {"none": "no figures (--figures summary|all draws them)",
+                 "summary": f"{n_figures} figures of the preloads (--figures all adds each group's)",
+                 "all": f"{n_figures} figures"}[level]
+        stage(f"written: results.json, CSV tables, report.txt, report.html, {drawn}")
+        return _identify_console(args, result)
+    except KeyboardInterrupt:  # the new set is already in place: the usual message would be false
+        raise KeyboardInterrupt(f"the new output set was complete and is in {args.out}") from None
+
+
+def _identify_console(args, result) -> int:
+    """What identify prints once its output set is written, and its exit status."""
     from .report.output import flagged_lines
     from .report.summary import console_lines, error_lines
 
