@@ -392,3 +392,42 @@ def test_backbone_results_not_utf8(tmp_path, capsys):
     path.write_bytes(b'{"models": "\xff\xfe"}')
     code, err = _run(["backbone", path, "--out", tmp_path / "bb", "--quiet"], capsys)
     assert code == 2 and str(path) in err and not (tmp_path / "bb").exists(), err
+
+
+# ----------------------------------------------------------------------------- simulate configurations
+SIM = """
+[[model]]
+preload = 120
+omega1 = 170.0
+coefficients = { k3 = 5e6 }
+amplitude_laws = { c = [0.08, 70.0, 1e4] }
+
+[excitation]
+force_levels = [1.0]
+omega_start = 164.0
+omega_stop = 176.0
+n_frequencies = 3
+
+[acquisition]
+fs = 2000.0
+periods = 10
+"""
+
+
+@pytest.mark.parametrize("edit, pattern", [
+    (('fs = 2000.0', 'fs = "fast"'), r"\[acquisition\] fs: expected a finite number"),
+    (('periods = 10', 'periods = 10\nnoize = 0.01'), r"unknown key 'noize'; did you mean 'noise'"),
+    (('n_frequencies = 3', 'n_frequencies = 2.5'), r"n_frequencies: expected an integer"),
+    (('force_levels = [1.0]', 'force_levels = [inf]'), r"force_levels: expected a list"),
+    (('amplitude_laws = { c = [0.08, 70.0, 1e4] }', 'amplitude_laws = { c = "power" }'), r"power law is not simulated"),
+    (('[excitation]', '[excitaton]'), r"unknown table 'excitaton'; did you mean 'excitation'"),
+    (('[acquisition]', 'acquisition = 3\n[acq]'), r"(acquisition\] must be a table|unknown table 'acq')"),
+])
+def test_simulate_configuration_checked_like_a_study_plan(tmp_path, capsys, edit, pattern):
+    """``jointid simulate``: the same table checks as a study plan (traceback or silent acceptance before)."""
+    (tmp_path / "c.toml").write_text(SIM.replace(*edit))
+    code, err = _run(["simulate", tmp_path / "c.toml", "--out", tmp_path / "camp"], capsys)
+    assert code == 2 and re.search(pattern, err) and "c.toml" in err, err
+    assert not (tmp_path / "camp").exists()
+    (tmp_path / "ok.toml").write_text(SIM)
+    assert main(["simulate", str(tmp_path / "ok.toml"), "--out", str(tmp_path / "ok"), "--quiet"]) == 0

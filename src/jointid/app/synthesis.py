@@ -33,17 +33,139 @@ exactly) and sampled analytically, so a record is the exact periodic response pl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ManifestError
+from ..errors import ManifestError, unknown_key_message
 from ..identify.terms import library
 from ..io.campaign import read_toml, write_campaign, write_csv_record
 from ..simulate.model import SingleModeModel
 
 __all__ = ["SimulationConfig", "load_simulation_config", "simulate_campaign", "model_from_mapping"]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# what a configuration may hold (also the tables of a study plan, jointid.app.study)
+
+# the keys of each simulation table (a study plan's [vary] and [grid] paths address them too)
+_TABLES = {
+    "campaign": ("name",),
+    "model": ("preload", "terms", "omega1", "k3", "coefficients", "amplitude_laws"),
+    "excitation": ("force_levels", "omega_start", "omega_stop", "n_frequencies", "frequencies_hz"),
+    "acquisition": ("fs", "periods", "t0", "noise", "seed", "write_frequency", "n_harmonics"),
+}
+
+MAX_SEED = 2**63 - 1
+MAX_PRELOADS = 20  # [[model]] tables of a campaign
+MAX_LEVELS = 50  # force levels (also the largest `size` of a draw)
+MAX_FREQUENCIES = 1_000
+MAX_LAW_ORDER = 10
+_INF = float("inf")
+
+# what a key of the simulation tables holds: ("number", low, high, low excluded), ("int", low, high),
+# ("bool",), ("str",), ("label",) (a string or a number), ("list", element, min length, max length),
+# ("table", value) (a table of name -> value)
+_POSITIVE = ("number", 0.0, 1e7, True)
+_SPECS = {
+    ("campaign", "name"): ("str",),
+    ("model", "preload"): ("label",),
+    ("model", "terms"): ("str",),
+    ("model", "omega1"): _POSITIVE,
+    ("model", "k3"): ("number", -_INF, _INF, False),
+    ("model", "coefficients"): ("table", ("number", -_INF, _INF, False)),
+    ("model", "amplitude_laws"): ("table", ("list", ("number", -_INF, _INF, False), 1, MAX_LAW_ORDER + 1)),
+    ("excitation", "force_levels"): ("list", ("number", 0.0, 1e9, True), 1, MAX_LEVELS),
+    ("excitation", "omega_start"): _POSITIVE,
+    ("excitation", "omega_stop"): _POSITIVE,
+    ("excitation", "n_frequencies"): ("int", 1, MAX_FREQUENCIES),
+    ("excitation", "frequencies_hz"): ("list", ("number", 0.0, 1e6, True), 1, MAX_FREQUENCIES),
+    ("acquisition", "fs"): ("number", 0.0, 1e6, True),
+    ("acquisition", "periods"): ("number", 2.0, 1e5, False),
+    ("acquisition", "t0"): ("number", -1e9, 1e9, False),
+    ("acquisition", "noise"): ("number", 0.0, 1e3, False),
+    ("acquisition", "seed"): ("int", 0, MAX_SEED),
+    ("acquisition", "write_frequency"): ("bool",),
+    ("acquisition", "n_harmonics"): ("int", 1, 50),
+}
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _describe(spec) -> str:
+    kind = spec[0]
+    if kind == "number":
+        lo, hi, open_lo = spec[1:]
+        low = "" if lo == -_INF else (f" > {lo:g}" if open_lo else f" >= {lo:g}")
+        high = "" if hi == _INF else f" <= {hi:g}"
+        return "a finite number" + (f"{low}{' and' if low and high else ''}{high}" if low or high else "")
+    if kind == "int":
+        return f"an integer from {spec[1]} to {spec[2]}"
+    if kind == "list":
+        return f"a list of {spec[2]} to {spec[3]} values, each {_describe(spec[1])}"
+    if kind == "table":
+        return f"a table whose values are each {_describe(spec[1])}"
+    return {"bool": "true or false", "str": "a string", "label": "a string or a number"}[kind]
+
+
+def _value_ok(spec, v) -> bool:
+    kind = spec[0]
+    if kind == "number":
+        lo, hi, open_lo = spec[1:]
+        return _is_number(v) and math.isfinite(v) and (lo < v if open_lo else lo <= v) and v <= hi
+    if kind == "int":
+        return isinstance(v, int) and not isinstance(v, bool) and spec[1] <= v <= spec[2]
+    if kind == "bool":
+        return isinstance(v, bool)
+    if kind == "str":
+        return isinstance(v, str)
+    if kind == "label":
+        return isinstance(v, str) or (_is_number(v) and math.isfinite(v))
+    if kind == "list":
+        return isinstance(v, list) and spec[2] <= len(v) <= spec[3] and all(_value_ok(spec[1], x) for x in v)
+    if kind == "table":
+        return isinstance(v, dict) and all(isinstance(k, str) and _value_ok(spec[1], x) for k, x in v.items())
+    return False  # pragma: no cover
+
+
+def _check_value(spec, v, where):
+    if spec[0] == "table" and isinstance(v, dict):  # name the entry at fault
+        for k, x in v.items():
+            _check_value(spec[1], x, f"{where}.{k}")
+    if not _value_ok(spec, v):
+        extra = ""
+        if spec == _SPECS[("model", "amplitude_laws")][1] and isinstance(v, str):
+            extra = " (a simulated law is a polynomial [c0, c1, ...] in the amplitude; the power law is not simulated)"
+        shown = repr(v) if len(repr(v)) <= 80 else repr(v)[:77] + "..."
+        raise ManifestError(f"{where}: expected {_describe(spec)}, got {shown}{extra}")
+
+
+def _tables_of(d, name, source):
+    """The tables under ``name`` (``[[model]]`` may be several), checked to be tables."""
+    node = d.get(name)
+    if node is None:
+        return []
+    items = node if (name == "model" and isinstance(node, list)) else [node]
+    if name == "model" and isinstance(node, list) and not 1 <= len(node) <= MAX_PRELOADS:
+        raise ManifestError(f"{source}: [[model]] needs 1 to {MAX_PRELOADS} tables, got {len(node)}")
+    for item in items:
+        if not isinstance(item, dict):
+            raise ManifestError(f"{source}: [{name}] must be a table, got {type(node).__name__} {node!r}"[:300])
+    return items
+
+
+def check_simulation_tables(d, source):
+    """Known keys (with the nearest valid one as a hint), types and bounds of the simulation tables."""
+    for name, keys in _TABLES.items():
+        for table in _tables_of(d, name, source):
+            for k, v in table.items():
+                if k not in keys:
+                    raise ManifestError(f"{source}: [{name}] {unknown_key_message(k, keys)}")
+                _check_value(_SPECS[(name, k)], v, f"{source}: [{name}] {k}")
 
 
 def model_from_mapping(d: dict, source="config") -> SingleModeModel:
@@ -95,6 +217,10 @@ def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
     else:
         source = str(path_or_dict)
         d = read_toml(path_or_dict, "simulation configuration")
+    for name in d:
+        if name not in _TABLES:
+            raise ManifestError(f"{source}: {unknown_key_message(name, _TABLES, 'table')}")
+    check_simulation_tables(d, source)
     models = d.get("model")
     if models is None:
         raise ManifestError(f"{source}: a [model] table is required")
