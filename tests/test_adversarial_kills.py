@@ -205,3 +205,17 @@ def test_study_losing_its_scheduler_says_so_and_keeps_the_last_complete_statisti
     indices = [json.loads(line)["index"] for line in (out / "campaigns.jsonl").read_text().splitlines()]
     assert indices == list(range(8))
     assert _final_consistent(out)[0] == 8
+
+
+def test_sigint_during_teardown_keeps_the_exit_status(tmp_path):
+    """A Ctrl-C once the command has returned (Python's teardown) neither kills it nor prints a traceback."""
+    script = (
+        "import atexit, os, signal, sys, time\n"
+        "from jointid.cli import entry\n"
+        "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.2)))\n"
+        "sys.argv = ['jointid', 'example', '--list']\n"
+        "sys.exit(entry())\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, (proc.returncode, proc.stderr)
+    assert "Traceback" not in proc.stderr and "KeyboardInterrupt" not in proc.stderr, proc.stderr

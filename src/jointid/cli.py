@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -518,5 +519,21 @@ def main(argv=None) -> int:
             return EXIT_INTERNAL
 
 
+def entry() -> int:
+    """The console command: :func:`main`, then a Ctrl-C during the interpreter's teardown is ignored.
+
+    Once ``main`` has returned the work and its message are complete; a SIGINT arriving while
+    Python shuts down (atexit handlers, module teardown, where the default action kills the
+    process) would otherwise end it by the signal, or with a traceback, instead of its exit status.
+    """
+    try:
+        code = main()
+    except KeyboardInterrupt:  # outside a command's own handling (its arguments, or after it returned)
+        print("jointid: interrupted", file=sys.stderr)
+        code = EXIT_INTERRUPTED
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(entry())
