@@ -8,7 +8,8 @@ from scipy.integrate import solve_ivp
 
 from jointid.errors import JointidWarning, RecordError
 from jointid.identify.backbone import model_backbone
-from jointid.signal.ringdown import dominant_frequency, fit_decay, ringdown_force_state_mapping
+from jointid.identify.ringdown import ringdown_force_state_mapping
+from jointid.signal.ringdown import dominant_frequency, fit_decay
 
 FS = 2048.0
 

@@ -10,6 +10,7 @@
 * :mod:`jointid.identify.hysteresis` -- measured and identified loops (Figs 17-19);
 * :mod:`jointid.identify.delay` -- the response channel's delay behind the excitation, from the dwells;
 * :mod:`jointid.identify.backbone` -- omega(a), zeta(a): identified models with bands, stepped-sine points;
+* :mod:`jointid.identify.ringdown` -- force-state mapping on a free decay, window by window;
 * :mod:`jointid.identify.jointlaw` -- Iwan and cubic + viscous joint laws fitted to a backbone through the FE modes;
 * :mod:`jointid.identify.regression` -- the scaled, blockwise least squares underneath.
 """

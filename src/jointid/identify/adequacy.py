@@ -75,7 +75,7 @@ def model_name(terms, power_laws=False) -> str:
 
     names = set(library(list(terms)).names)
     for c in DEFAULT_CANDIDATES:
-        if set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws):
+        if c.hysteretic is None and set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws):
             return c.name
     return " + ".join(terms) + ("; power laws" if power_laws else "")
 
@@ -262,9 +262,9 @@ class AdequacyResult:
 
     def plot(self, ax=None):
         """Shared parameters at each force level with their 95 % intervals, relative to the common value."""
-        from ..report.selection_plots import plot_level_equality
+        from .. import plotting
 
-        return plot_level_equality(self, ax=ax)
+        return plotting.draw("selection_plots.plot_level_equality", self, ax=ax)
 
 
 def level_equality(level_fits, names=None) -> tuple:

@@ -417,9 +417,9 @@ class BroadbandFit:
 
     def plot(self, ax=None, q=None):
         """Restoring force against displacement at zero velocity (stiffness curve)."""
-        from ..report.data_plots import plot_broadband_fit
+        from .. import plotting
 
-        return plot_broadband_fit(self, ax=ax, q=q)
+        return plotting.draw("data_plots.plot_broadband_fit", self, ax=ax, q=q)
 
 
 # ----------------------------------------------------------------------------- estimator

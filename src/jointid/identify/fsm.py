@@ -205,9 +205,9 @@ class RecordFit:
                 f"{len(self.warnings)} warnings)")
 
     def _repr_html_(self):
-        from ..report.notebook import result_html
+        from .. import plotting
 
-        return result_html(self)
+        return plotting.draw("notebook.result_html", self)
 
 
 def _check_terms(lib: TermLibrary, n_harmonics: int):
@@ -465,15 +465,15 @@ class PooledFit:
                 f"{len(self.warnings)} warnings)")
 
     def _repr_html_(self):
-        from ..report.notebook import result_html
+        from .. import plotting
 
-        return result_html(self)
+        return plotting.draw("notebook.result_html", self)
 
     def plot(self, ax=None, name="c"):
         """Per-record coefficient ``name`` against ``q_max`` (seed Fig 12)."""
-        from ..report.identify_plots import plot_per_record
+        from .. import plotting
 
-        return plot_per_record(self, name=name, ax=ax)
+        return plotting.draw("identify_plots.plot_per_record", self, name=name, ax=ax)
 
 
 class PooledForceStateMapping:

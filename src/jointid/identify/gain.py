@@ -355,9 +355,9 @@ class GainFit:
 
     def plot(self, ax=None):
         """Per-record ``c/m`` and ``omega1`` against amplitude."""
-        from ..report.data_plots import plot_gain_fit
+        from .. import plotting
 
-        return plot_gain_fit(self, ax=ax)
+        return plotting.draw("data_plots.plot_gain_fit", self, ax=ax)
 
 
 class PooledGainForceStateMapping:

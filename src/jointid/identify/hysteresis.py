@@ -54,9 +54,9 @@ class HysteresisLoop:
         }
 
     def plot(self, ax=None, **kw):
-        from ..report.identify_plots import plot_hysteresis
+        from .. import plotting
 
-        return plot_hysteresis(self, ax=ax, **kw)
+        return plotting.draw("identify_plots.plot_hysteresis", self, ax=ax, **kw)
 
 
 def hysteresis_loop(signals: StateSignals, terms, coefficients, *, filtered=True) -> HysteresisLoop:

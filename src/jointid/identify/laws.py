@@ -98,14 +98,14 @@ class DampingLaw:
         return f"DampingLaw(c(q_max): {coef}; {len(self.q_max)} records)"
 
     def _repr_html_(self):
-        from ..report.notebook import result_html
+        from .. import plotting
 
-        return result_html(self)
+        return plotting.draw("notebook.result_html", self)
 
     def plot(self, ax=None, **kw):
-        from ..report.identify_plots import plot_damping_law
+        from .. import plotting
 
-        return plot_damping_law(self, ax=ax, **kw)
+        return plotting.draw("identify_plots.plot_damping_law", self, ax=ax, **kw)
 
 
 def fit_damping_law(q_max, c, c_stderr=None, order=2, c_covariance=None, q_max_variance=None,
@@ -301,14 +301,14 @@ class PowerLaw:
         return f"PowerLaw(U = {self.alpha:.4g} F^{self.n:.4f} ± {self.n_stderr:.2g}; {len(self.force)} records)"
 
     def _repr_html_(self):
-        from ..report.notebook import result_html
+        from .. import plotting
 
-        return result_html(self)
+        return plotting.draw("notebook.result_html", self)
 
     def plot(self, ax=None, **kw):
-        from ..report.identify_plots import plot_power_law
+        from .. import plotting
 
-        return plot_power_law(self, ax=ax, **kw)
+        return plotting.draw("identify_plots.plot_power_law", self, ax=ax, **kw)
 
 
 def fit_power_law(force, energy) -> PowerLaw:

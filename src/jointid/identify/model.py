@@ -455,15 +455,15 @@ class PreloadModel:
         return f"PreloadModel(preload {self.preload!r}, {self.n_records} records: {pars})"
 
     def _repr_html_(self):
-        from ..report.notebook import result_html
+        from .. import plotting
 
-        return result_html(self)
+        return plotting.draw("notebook.result_html", self)
 
     def plot(self, ax=None, coefficient="c"):
         """``coefficient(q_max)`` of the model with its 95 % band over the measured amplitudes."""
-        from ..report.identify_plots import new_axes
+        from .. import plotting
 
-        ax = new_axes(ax)
+        ax = plotting.draw("identify_plots.new_axes", ax)
         qq = np.linspace(np.min(self.q_max), np.max(self.q_max), 200)
         val, se = self.coefficient_at(coefficient, qq)
         (line,) = ax.plot(qq, val, "-", label=f"preload {self.preload} model")

@@ -117,9 +117,9 @@ class ModalModel:
 
     def plot(self, ax=None, modes=None, **kwargs):
         """Plot the mode shapes (see :func:`jointid.report.modal_plots.plot_mode_shapes`)."""
-        from ..report.modal_plots import plot_mode_shapes  # plotting lives in report
+        from .. import plotting  # drawing lives in report, reached by name
 
-        return plot_mode_shapes(self, modes=modes, ax=ax, **kwargs)
+        return plotting.draw("modal_plots.plot_mode_shapes", self, modes=modes, ax=ax, **kwargs)
 
 
 def modal_analysis(model: JointedBeam | FEModel, n_modes: int = 6) -> ModalModel:

@@ -251,9 +251,9 @@ class UpdateResult:
 
     def plot(self, ax=None):
         """Bar chart of the per-mode residuals (:func:`jointid.report.modal_plots.plot_update_residuals`)."""
-        from ..report.modal_plots import plot_update_residuals  # plotting lives in report
+        from .. import plotting  # drawing lives in report, reached by name
 
-        return plot_update_residuals(self, ax=ax)
+        return plotting.draw("modal_plots.plot_update_residuals", self, ax=ax)
 
 
 def _start_points(x_init, lo, hi, n_starts):

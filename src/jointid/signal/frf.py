@@ -138,9 +138,9 @@ class FRFEstimate:
 
     def plot(self, ax=None, **kwargs):
         """Plot magnitude, phase and coherence (:func:`jointid.report.modal_plots.plot_frf`)."""
-        from ..report.modal_plots import plot_frf  # plotting lives in report
+        from .. import plotting  # drawing lives in report, reached by name
 
-        return plot_frf(self, ax=ax, **kwargs)
+        return plotting.draw("modal_plots.plot_frf", self, ax=ax, **kwargs)
 
 
 def h1_estimate(

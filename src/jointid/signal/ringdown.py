@@ -24,8 +24,8 @@ From each window:
   neighbouring windows and the displacement's rate restored;
 * the displacement and velocity in closed form, ``q = Re(C / lambda^2 e^{lambda tau})``,
   ``q' = Re(C / lambda e^{lambda tau})`` for an acceleration record: the states of the
-  force-state mapping on the free decay (:func:`ringdown_force_state_mapping`, restoring
-  force ``-q''``).  Their error is stated per window as the RMS of the fit residual
+  force-state mapping on the free decay (restoring force ``-q''``; fitted on the identify
+  floor by :func:`jointid.identify.ringdown.ringdown_force_state_mapping`).  Their error is stated per window as the RMS of the fit residual
   relative to the window's amplitude (``state_error``); it holds the measurement noise,
   the other modes and the distortion of the decay inside the window;
 * the amplitude ``a = |C| / |lambda|^2`` of the displacement at the window's centre.
@@ -62,9 +62,10 @@ import numpy as np
 from scipy import optimize
 
 from ..errors import JointidWarning, RecordError
+from .backbone import Backbone
 from .harmonics import check_signal, check_time_base
 
-__all__ = ["DecayFit", "fit_decay", "ringdown_force_state_mapping", "dominant_frequency", "band_limit",
+__all__ = ["DecayFit", "fit_decay", "dominant_frequency", "band_limit",
            "modal_ringdown", "monotone_check"]
 
 
@@ -142,13 +143,11 @@ class DecayFit:
         return int(self.t_centre.size)
 
     def backbone(self, label="", include_floor=False, measure="displacement", amplitude_unit=None):
-        """The windows above the noise floor as a :class:`~jointid.identify.backbone.Backbone` (``"ringdown"``).
+        """The windows above the noise floor as a :class:`~jointid.signal.backbone.Backbone` (``"ringdown"``).
 
         ``measure="signal"`` gives the amplitude of the recorded signal (an accelerometer's
         first-harmonic acceleration amplitude) instead of the displacement's.
         """
-        from ..identify.backbone import Backbone
-
         if measure not in ("displacement", "signal"):
             raise RecordError(f"measure must be 'displacement' or 'signal', got {measure!r}")
         keep = np.ones(len(self), bool) if include_floor else ~self.below_noise_floor
@@ -352,45 +351,6 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, ho
     return DecayFit(_readonly(R[:, 5]), _readonly(amp), _readonly(a_se), _readonly(wn), _readonly(w_se),
                     _readonly(zeta), _readonly(z_se), _readonly(errs), np.array(floor), _readonly(coefs),
                     tuple(windows), kind, float(n_cycles), float(snr_min), _readonly(c_abs), _readonly(c_se))
-
-
-def ringdown_force_state_mapping(decay: DecayFit, t, accel, terms="q + q'"):
-    """Force-state mapping on a free decay: ``-q''`` regressed on the terms, window by window.
-
-    Parameters
-    ----------
-    decay : DecayFit
-        From :func:`fit_decay` of the same acceleration record (its states are used).
-    t, accel : array
-        The record (measured ``q''``).
-    terms : str or TermLibrary
-        Restoring-force terms; ``"q + q'"`` gives the equivalent stiffness and damping of
-        each window.
-
-    Returns
-    -------
-    coefficients, stderr : ndarray, shape (n_windows_used, n_terms)
-    amplitude : ndarray
-        Window amplitudes (``decay.amplitude`` above the noise floor).
-    """
-    from ..identify.terms import library
-
-    if decay.kind != "acceleration":
-        raise RecordError(f"the free-decay force-state mapping needs an acceleration record, got {decay.kind!r}")
-    lib = library(terms)
-    coef, se = [], []
-    for _, q, v, acc in decay.states(t, accel):
-        X = lib.evaluate(q, v)
-        y = -acc
-        scale = np.max(np.abs(X), axis=0)
-        scale[scale == 0] = 1.0
-        c, *_ = np.linalg.lstsq(X / scale, y, rcond=None)
-        r = y - (X / scale) @ c
-        s2 = float(r @ r) / max(y.size - len(lib), 1)
-        cov = np.linalg.pinv((X / scale).T @ (X / scale)) * s2
-        coef.append(c / scale)
-        se.append(np.sqrt(np.clip(np.diag(cov), 0, None)) / scale)
-    return np.array(coef), np.array(se), decay.amplitude[~decay.below_noise_floor]
 
 
 def band_limit(t, x, band, order=4, channel="accel") -> np.ndarray:

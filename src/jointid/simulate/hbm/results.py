@@ -261,9 +261,9 @@ class FrequencyResponse:
 
     def plot(self, ax=None, **kwargs):
         """Plot with :func:`jointid.report.frf_plots.plot_frequency_response`; returns ``(fig, ax)``."""
-        from ...report.frf_plots import plot_frequency_response
+        from ... import plotting
 
-        return plot_frequency_response(self, ax=ax, **kwargs)
+        return plotting.draw("frf_plots.plot_frequency_response", self, ax=ax, **kwargs)
 
 
 # ----------------------------------------------------------------------------------------
