@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["harmonic_index", "n_coefficients", "TERMS", "coefficient_unit"]
+__all__ = ["harmonic_index", "n_coefficients", "TERMS", "coefficient_unit", "STRUCTURE_KEYS"]
 
 #: term name -> (coefficient, unit of the coefficient, what a positive coefficient means).
 TERMS = {
@@ -57,6 +57,15 @@ TERMS = {
     "sign(q')": ("f_c", "m/s^2", "f_c > 0 dissipates (Coulomb friction force per unit modal mass)"),
     "q^2 q'": ("c_qq", "1/(m^2 s)", "c_qq > 0 dissipates more at large displacement"),
 }
+
+
+#: The keys of one ``[structure]`` table of a campaign (docs/formats.md): read by the campaign
+#: loader (one table for every preload, or tables keyed by preload) and by
+#: :mod:`jointid.modal.structure`, which builds the structure from it.
+STRUCTURE_KEYS = frozenset({
+    "model", "preload", "force_position", "force_column", "basis_modes", "n_modes", "beam", "joint",
+    "update_to_hz", "update_parameters", "sensors", "mode_shape",
+})
 
 
 def coefficient_unit(term: str, power: int = 0) -> str:

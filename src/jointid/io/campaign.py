@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from ..conventions import STRUCTURE_KEYS
 from ..errors import ManifestError, RecordError, RecordFileNotFoundError, unknown_key_message, where
 from .channels import validate_channels
 
@@ -261,15 +262,13 @@ def _structures(structure, root: Path, manifest_path: Path):
         return None
     if not isinstance(structure, dict):
         raise ManifestError(f"{manifest_path}: [structure] must be a table, got {structure!r}")
-    from ..modal.structure import _TOP_KEYS  # the keys of one structure table
-
-    if not structure or set(structure) & set(_TOP_KEYS):
+    if not structure or set(structure) & STRUCTURE_KEYS:
         return None  # one structure for every preload (validated by jointid.modal.structure)
     out = {}
     for label, table in structure.items():
         ctx = f"{manifest_path} [structure.{label}]: "
         if not isinstance(table, dict):
-            raise ManifestError(f"{ctx}{unknown_key_message(label, _TOP_KEYS)}; or a per-preload table")
+            raise ManifestError(f"{ctx}{unknown_key_message(label, STRUCTURE_KEYS)}; or a per-preload table")
         if "file" in table:
             if set(table) != {"file"} or not isinstance(table["file"], str) or not table["file"]:
                 raise ManifestError(f"{ctx}expected only file = \"structure.toml\" (a file name), got {table!r}")

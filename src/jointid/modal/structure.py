@@ -68,6 +68,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..conventions import STRUCTURE_KEYS
 from ..errors import JointidWarning, RecordError, StructureError, unknown_key_message
 from ..rounding import format_value
 from .analysis import ModalModel, modal_analysis
@@ -84,10 +85,7 @@ MODELS = ("seed-bolted-beam",)
 #: |phi_1(x_f)| below this fraction of max |phi_1| counts as zero.
 _ZERO_SHAPE = 1e-3
 
-_TOP_KEYS = {
-    "model", "preload", "force_position", "force_column", "basis_modes", "n_modes", "beam", "joint",
-    "update_to_hz", "update_parameters", "sensors", "mode_shape",
-}
+_TOP_KEYS = STRUCTURE_KEYS  # the keys of one [structure] table, shared with the campaign loader
 _BEAM_KEYS = {"length", "width", "thickness", "youngs_modulus", "density", "n_elements", "clamp_stiffness"}
 _JOINT_KEYS = {"position", "k_w", "k_t", "c_w", "c_t", "mass", "inertia"}
 
