@@ -1,94 +1,160 @@
-"""The data flow stays visible: core numerics never import io, report or cli at module level."""
+"""The data flow stays visible: every import points down the floors, and no module imports itself in a circle.
+
+Floors, bottom to top (docs/architecture.md): the ground (errors, conventions, rounding, _blas, joints,
+numerics, plotting) < io < signal < modal < identify < simulate < rig < report < app < cli.  A module in a
+sub-package belongs to the floor of its top folder.  Every internal import is read, at module level and
+inside functions, with relative imports resolved from the importing file's package.
+"""
 
 import ast
+import sys
+from functools import lru_cache
 from pathlib import Path
 
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "jointid"
+
+#: The floor of every top-level module or folder of the package (``jointid`` is the package itself).
+FLOORS = {
+    "jointid": 0, "errors": 0, "conventions": 0, "rounding": 0, "_blas": 0, "joints": 0, "numerics": 0,
+    "plotting": 0,
+    "io": 1, "examples": 1,
+    "signal": 2, "modal": 3, "identify": 4, "simulate": 5, "rig": 6, "report": 7, "app": 8, "cli": 9,
+}
 CORE = ("signal", "modal", "identify", "simulate")
-FORBIDDEN = ("io", "report", "cli")
+#: Core numerics work on arrays and records in memory: they import none of these, not even inside a function.
+CORE_FORBIDDEN = ("io", "report", "app", "cli")
+
+#: Upward imports still waiting for their removal: (importing file, imported module) -> reason.  The list may
+#: only shrink: an entry whose import is gone (or no longer points up) fails the test below, so remove it then.
+ALLOWED_UPWARD = {
+    ("report/reprediction_plots.py", "jointid.app.reprediction"):
+        "the re-predicted loops are to be computed once in app and carried in the result",
+}
 
 
-def _resolved_imports(path, top_level_only=False):
-    """The room (first folder under jointid) of every internal import of ``path``, relative
-    imports resolved from the file's own package, at any depth."""
-    package = path.relative_to(SRC.parent).parent.parts  # ("jointid", "simulate", "hbm")
-    tree = ast.parse(path.read_text())
-    for node in (tree.body if top_level_only else ast.walk(tree)):
-        names = []
+def _room(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def _module_file(module: str, src: Path = SRC) -> Path | None:
+    """The file of a dotted ``jointid...`` module (``.py`` or a package's ``__init__.py``), else None."""
+    rel = Path(*module.split(".")[1:])
+    for path in (src / rel.with_suffix(".py") if rel.parts else None, src / rel / "__init__.py"):
+        if path is not None and path.is_file():
+            return path
+    return None
+
+
+def _module_name(path: Path, src: Path = SRC) -> str:
+    rel = path.relative_to(src.parent).with_suffix("")
+    parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+    return ".".join(parts)
+
+
+@lru_cache(maxsize=None)
+def _imports(path: Path, src: Path = SRC) -> tuple:
+    """Every internal import of ``path`` as ``(line, dotted module)``, module level and inside functions.
+
+    ``from a.b import c`` names the module ``a.b.c`` when ``c`` is a module, else ``a.b``; relative imports
+    are resolved from the file's own package."""
+    package = _module_name(path, src).split(".")
+    if path.name != "__init__.py":
+        package = package[:-1]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom):
             if node.level:
-                base = list(package[: len(package) - node.level + 1])
-                names = [base + (node.module.split(".") if node.module else [])]
+                base = package[: len(package) - node.level + 1] + (node.module.split(".") if node.module else [])
+                base = ".".join(base)
             else:
-                names = [node.module.split(".")]
+                base = node.module or ""
+            if _room(base) != "jointid" and not base.startswith("jointid"):
+                continue
+            for alias in node.names:
+                sub = f"{base}.{alias.name}"
+                out.append((node.lineno, sub if _module_file(sub, src) else base))
         elif isinstance(node, ast.Import):
-            names = [a.name.split(".") for a in node.names]
-        for parts in names:
-            if parts and parts[0] == "jointid":
-                yield parts[1] if len(parts) > 1 else "jointid"
+            out += [(node.lineno, a.name) for a in node.names if a.name.split(".")[0] == "jointid"]
+    return tuple(out)
 
 
-def _module_level_imports(path):
-    tree = ast.parse(path.read_text())
-    for node in tree.body:  # top level only: plot() methods import report lazily, by design
-        if isinstance(node, ast.ImportFrom) and node.level >= 1:
-            yield (node.module or "").split(".")[0] if node.level == 2 else None
-        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("jointid."):
-            yield node.module.split(".")[1]
+def _source_files(src: Path = SRC):
+    return sorted(p for p in src.rglob("*.py"))
+
+
+def _rel(path: Path, src: Path = SRC) -> str:
+    return path.relative_to(src).as_posix()
+
+
+def _arrows(src: Path = SRC):
+    """``(file, line, imported module)`` for every internal import of the package."""
+    for path in _source_files(src):
+        for line, module in _imports(path, src):
+            yield _rel(path, src), line, module
+
+
+def _file_room(rel: str) -> str:
+    first = rel.split("/")[0]
+    return "jointid" if first == "__init__.py" else first.removesuffix(".py")
+
+
+def test_every_room_has_a_floor():
+    rooms = {_file_room(_rel(p)) for p in _source_files()}
+    assert rooms <= set(FLOORS), f"place {sorted(rooms - set(FLOORS))} on a floor (here and docs/architecture.md)"
+
+
+def test_every_internal_import_resolves_to_a_module():
+    bad = [f"{f}:{line} -> {m}" for f, line, m in _arrows() if _module_file(m) is None]
+    assert not bad, "imports of modules that do not exist: " + "; ".join(bad)
+
+
+def test_no_import_points_up_a_floor():
+    up = []
+    for rel, line, module in _arrows():
+        if FLOORS[_room(module)] > FLOORS[_file_room(rel)] and (rel, module) not in ALLOWED_UPWARD:
+            up.append(f"{rel}:{line} ({_file_room(rel)}, floor {FLOORS[_file_room(rel)]}) imports {module} "
+                      f"(floor {FLOORS[_room(module)]})")
+    assert not up, "imports pointing up the floors (docs/architecture.md):\n  " + "\n  ".join(up)
+
+
+def test_allowed_upward_imports_still_exist():
+    """The allow-list only shrinks: each entry names an import that is still there and still points up."""
+    seen = {(rel, module) for rel, _, module in _arrows()}
+    for (rel, module), reason in ALLOWED_UPWARD.items():
+        assert reason
+        assert (rel, module) in seen, f"{rel} no longer imports {module}: remove its ALLOWED_UPWARD entry"
+        assert FLOORS[_room(module)] > FLOORS[_file_room(rel)], f"{rel} -> {module} is not upward: remove it"
 
 
 @pytest.mark.parametrize("package", CORE)
-def test_core_does_not_import_io_report_or_cli(package):
-    for path in sorted((SRC / package).rglob("*.py")):  # sub-packages too (simulate/hbm/)
-        if path.parent == SRC / package:
-            bad = [m for m in _module_level_imports(path) if m in FORBIDDEN]
-        else:
-            bad = [m for m in _resolved_imports(path, top_level_only=True) if m in FORBIDDEN]
-        assert not bad, f"{path.relative_to(SRC)} imports {bad} at module level"
+def test_core_floors_never_import_io_report_app_or_cli(package):
+    bad = [f"{rel}:{line} -> {module}" for rel, line, module in _arrows()
+           if _file_room(rel) == package and _room(module) in CORE_FORBIDDEN]
+    assert not bad, f"{package} works in memory and never imports {CORE_FORBIDDEN}: " + "; ".join(bad)
 
 
-# Ground-floor packages: every import in them (module level or inside a function) stays on the ground.
-GROUND = {"joints": {"errors", "conventions", "joints"}, "numerics": {"errors", "conventions", "numerics"}}
-
-
-def _all_internal_imports(path, package):
-    tree = ast.parse(path.read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            mod = node.module or ""
-            if node.level == 1:
-                yield package
-            elif node.level == 2:
-                yield mod.split(".")[0]
-            elif node.level == 0 and mod.split(".")[0] == "jointid":
-                yield mod.split(".")[1] if "." in mod else "jointid"
-            elif node.level > 2:
-                yield "jointid"
-        elif isinstance(node, ast.Import):
-            for alias in node.names:
-                parts = alias.name.split(".")
-                if parts[0] == "jointid":
-                    yield parts[1] if len(parts) > 1 else "jointid"
+# Ground-floor packages: every import in them (module level or inside a function) stays on the ground, and
+# the shared numerics keep to their own company.
+GROUND = {"joints": {"errors", "conventions", "joints"}, "numerics": {"errors", "conventions", "numerics"},
+          "plotting": {"errors"}}
 
 
 @pytest.mark.parametrize("package", sorted(GROUND))
 def test_ground_floor_packages_import_only_the_ground(package):
     allowed = GROUND[package]
-    files = sorted((SRC / package).glob("*.py"))
-    assert files, f"no files in {package}"
-    for path in files:
-        bad = sorted({m for m in _all_internal_imports(path, package) if m not in allowed})
-        assert not bad, f"{path.relative_to(SRC)} imports {bad}; {package} may import only {sorted(allowed)}"
+    rels = [(rel, line, m) for rel, line, m in _arrows() if _file_room(rel) == package]
+    assert any(_file_room(_rel(p)) == package for p in _source_files()), f"no files in {package}"
+    bad = sorted({f"{rel}:{line} -> {m}" for rel, line, m in rels if _room(m) not in allowed})
+    assert not bad, f"{package} may import only {sorted(allowed)}: " + "; ".join(bad)
 
 
 def test_numerics_imports_only_numpy_scipy_and_the_standard_library():
     """jointid.numerics is the ground floor of the shared numerics: besides errors and
     conventions (checked above) it may import only numpy, scipy and the standard library,
     at module level or inside a function."""
-    import sys
-
     allowed = set(sys.stdlib_module_names) | {"numpy", "scipy", "jointid", "__future__"}
     files = sorted((SRC / "numerics").rglob("*.py"))
     assert files
@@ -105,10 +171,70 @@ def test_numerics_imports_only_numpy_scipy_and_the_standard_library():
             assert not bad, f"{path.relative_to(SRC)} imports {bad}; numerics may import only numpy and scipy"
 
 
-def test_resolved_imports_see_relative_imports_of_sub_packages():
-    """The resolver behind the checks reads ``from ...report`` in simulate/hbm/ as report."""
+def _import_graph(src: Path = SRC, leave_out=()) -> dict:
+    """File -> set of files it imports (every internal import, module level and inside functions), less the
+    ``(file, module)`` arrows in ``leave_out``."""
+    graph = {}
+    for path in _source_files(src):
+        targets = {_module_file(m, src) for _, m in _imports(path, src) if (_rel(path, src), m) not in leave_out}
+        graph[_rel(path, src)] = {_rel(t, src) for t in targets if t is not None and t != path}
+    return graph
+
+
+def _cycles(graph: dict) -> list:
+    """The strongly connected components of more than one file (Tarjan's algorithm, iterative)."""
+    index, low, on_stack, stack, found, counter = {}, {}, set(), [], [], [0]
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = counter[0]
+                    counter[0] += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    found.append(sorted(component))
+    return found
+
+
+def test_no_import_circles():
+    """No files import each other in a circle; the upward arrows still allowed (and nothing else) are left out."""
+    circles = _cycles(_import_graph(leave_out=set(ALLOWED_UPWARD)))
+    assert not circles, "files importing each other in a circle:\n  " + "\n  ".join(" <-> ".join(c) for c in circles)
+
+
+def test_the_checks_see_imports_inside_functions_and_relative_imports():
+    """The resolver reads ``from ... import plotting`` inside a method of simulate/hbm/ as jointid.plotting,
+    and the circle finder sees a circle of three files and a circle through a package."""
     path = SRC / "simulate" / "hbm" / "results.py"
-    assert "plotting" in set(_resolved_imports(path))  # FrequencyResponse.plot, inside a function
-    assert "plotting" not in set(_resolved_imports(path, top_level_only=True))
-    assert "report" not in set(_resolved_imports(path))
-    assert "numerics" in set(_resolved_imports(SRC / "simulate" / "hbm" / "kernels.py"))
+    assert (True, "jointid.plotting") in {(ln > 1, m) for ln, m in _imports(path)}  # FrequencyResponse.plot
+    tree = ast.parse(path.read_text())
+    assert "plotting" not in {a.name for node in tree.body if isinstance(node, ast.ImportFrom) for a in node.names}
+    assert "jointid.numerics.aft" in {m for _, m in _imports(SRC / "simulate" / "hbm" / "kernels.py")} or \
+        "jointid.numerics" in {m for _, m in _imports(SRC / "simulate" / "hbm" / "kernels.py")}
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set(), "c": {"c"}}) == []

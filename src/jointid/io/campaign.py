@@ -47,7 +47,7 @@ import numpy as np
 
 from ..conventions import STRUCTURE_KEYS
 from ..errors import ManifestError, RecordError, RecordFileNotFoundError, unknown_key_message, where
-from .channels import validate_channels
+from .channels import MAX_SAMPLES, validate_channels
 
 __all__ = ["RecordSpec", "Campaign", "read_toml", "read_text", "load_campaign", "read_record", "RecordData",
            "write_campaign", "write_csv_record", "EXCITATIONS", "RECORD_KEYS"]
@@ -64,9 +64,9 @@ RECORD_KEYS = ("file", "frequency_hz", "force_level", "preload", "excitation", "
 CONTROLS = ("force", "response", "phase-resonance")
 #: Top-level tables of a manifest.
 MANIFEST_KEYS = ("campaign", "record", "structure")
-#: Size bounds: records per campaign, samples per record, bytes of a manifest or record file.
+#: Size bounds: records per campaign, samples per record (MAX_SAMPLES, from io.channels), bytes of a manifest
+#: or record file.
 MAX_RECORDS = 100_000
-MAX_SAMPLES = 20_000_000
 MAX_MANIFEST_BYTES = 64 * 2**20
 MAX_RECORD_BYTES = 4 * 2**30
 

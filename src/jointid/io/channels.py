@@ -34,10 +34,12 @@ import numpy as np
 
 from jointid.errors import RecordError, where
 
-__all__ = ["Channels", "merge_channels", "validate_channels", "TIME_RTOL"]
+__all__ = ["Channels", "merge_channels", "validate_channels", "TIME_RTOL", "MAX_SAMPLES"]
 
 #: Largest allowed deviation of a time step from the mean step, relative to the mean step.
 TIME_RTOL = 1e-6
+#: Largest number of samples of one record (every reader checks it before loading the values).
+MAX_SAMPLES = 20_000_000
 
 
 def _readonly_float(values: Any) -> np.ndarray:

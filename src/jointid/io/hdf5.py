@@ -40,8 +40,7 @@ from typing import Any
 import numpy as np
 
 from jointid.errors import RecordError, RecordFileNotFoundError, where
-from jointid.io.campaign import MAX_SAMPLES
-from jointid.io.channels import TIME_RTOL, Channels
+from jointid.io.channels import MAX_SAMPLES, TIME_RTOL, Channels
 
 __all__ = ["read_hdf5", "write_hdf5", "FORMAT_NAME", "FORMAT_VERSION"]
 
@@ -77,7 +76,7 @@ def _attr_str(value: Any) -> str:
 
 def check_dataset(ds, path, channel: str, name: str | None = None) -> None:
     """Raise a :class:`RecordError` unless ``ds`` holds real numbers (not text, compound or complex
-    values) within the record limit (:data:`jointid.io.campaign.MAX_SAMPLES` values), checked on
+    values) within the record limit (:data:`jointid.io.channels.MAX_SAMPLES` values), checked on
     its type and shape before a byte is read (a compressed dataset may inflate far beyond its file)."""
     name = ds.name if name is None else name
     dt = ds.dtype
