@@ -13,8 +13,9 @@ linear model and ``phi_f`` is the mode shapes at the force point.
 
 Two solvers share the joint-law protocol of :mod:`jointid.rig.iwan`:
 
-* :meth:`ReducedModel.harmonic_balance` -- multi-harmonic balance with the joint force
-  evaluated in time on one period (alternating frequency/time, the Iwan state from
+* :meth:`ReducedModel.harmonic_balance` -- the multi-mode harmonic balance of
+  :class:`jointid.simulate.structure_hb.CondensedHB` with the joint force evaluated in time
+  on one period (alternating frequency/time, the Iwan state from
   :meth:`~jointid.rig.iwan.JointLaw.periodic_force`).  Because the nonlinearity acts
   only through ``u``, the modal unknowns are condensed exactly onto the joint
   coordinates: for harmonic ``k`` with complex amplitudes,
@@ -38,9 +39,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._blas import single_threaded
-from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
-from ..numerics.aft import aft_basis
+from ..simulate.structure_hb import CondensedHB
+from ..simulate.structure_hb import to_complex as _complex
 from .iwan import JointLaw
 
 __all__ = [
@@ -103,23 +104,26 @@ def sample_series(coefficients, omega, n_samples, dt, derivative: int = 0) -> np
     return acc.real + X[..., 0, None].real
 
 
-def _complex(c):
-    """Real coefficient vectors (..., 2H+1) -> complex amplitudes (..., H+1), ``X_k = a_k - i b_k``."""
-    c = np.asarray(c, float)
-    out = np.empty(c.shape[:-1] + ((c.shape[-1] + 1) // 2,), complex)
-    out[..., 0] = c[..., 0]
-    out[..., 1:] = c[..., 1::2] - 1j * c[..., 2::2]
-    return out
+class _RigLawAFT:
+    """A rig joint law seen through the :mod:`jointid.joints` AFT protocol (``aft``).
 
+    It keeps the hysteretic state at ``t = 0`` of the last period it evaluated (the state of
+    the converged orbit once the harmonic balance returns), for time integrations that start
+    on the orbit.
+    """
 
-def _real(X):
-    """Inverse of :func:`_complex`."""
-    X = np.asarray(X)
-    out = np.empty(X.shape[:-1] + (2 * X.shape[-1] - 1,))
-    out[..., 0] = X[..., 0].real
-    out[..., 1::2] = X[..., 1:].real
-    out[..., 2::2] = -X[..., 1:].imag
-    return out
+    rate_dependent = False
+
+    def __init__(self, law: JointLaw):
+        self.law = law
+        self.state = None
+
+    def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True):
+        if jacobian:
+            f, self.state, D = self.law.periodic_force(u_t, jacobian=True)
+        else:
+            (f, self.state), D = self.law.periodic_force(u_t), None
+        return (f, D, None) if velocity_jacobian else (f, D)
 
 
 @dataclass(frozen=True, eq=False)
@@ -288,23 +292,15 @@ class ReducedModel:
         return (self.sensor_shapes @ Hm.T) * (1j * w) ** p
 
     # --- harmonic balance -------------------------------------------------------------
-    def _condensed(self, omega, H):
-        """Real matrix G (n_j n, n_j n) and the complex per-harmonic receptances."""
-        nj = self.n_joints
-        k = np.arange(H + 1)
-        Hm = self.receptance(k * omega)  # (H+1, n_m)
-        Gk = np.einsum("jm,km,lm->kjl", self.joint_shapes, Hm, self.joint_shapes)  # (H+1, nj, nj)
-        n = n_coefficients(H)
-        G = np.zeros((nj, n, nj, n))
-        G[:, 0, :, 0] = Gk[0].real
-        for kk in range(1, H + 1):
-            Gr, Gi = Gk[kk].real, Gk[kk].imag
-            a, b = 2 * kk - 1, 2 * kk
-            G[:, a, :, a] = Gr
-            G[:, a, :, b] = Gi
-            G[:, b, :, a] = -Gi
-            G[:, b, :, b] = Gr
-        return G.reshape(nj * n, nj * n), Hm
+    def engine(self, laws=None) -> CondensedHB:
+        """The multi-mode harmonic balance of :mod:`jointid.simulate.structure_hb` on this model.
+
+        ``laws`` (default: the rig's laws, each reporting its periodic state) act on the joint
+        coordinates; the stiffness ``K_T`` of each law is in the linear model.
+        """
+        laws = tuple(_RigLawAFT(law) for law in self.laws) if laws is None else tuple(laws)
+        return CondensedHB(self.omega, self.zeta, self.joint_shapes, self.force_shape, laws,
+                           [law.linear_stiffness for law in self.laws])
 
     def _aft(self, U, E, P, jacobian=False):
         """Nonlinear joint force coefficients of joint motions ``U (n_j, n)``, states at t = 0
@@ -362,62 +358,16 @@ class ReducedModel:
         The Jacobian of the AFT force is exact (:meth:`JointLaw.periodic_force` with
         ``jacobian=True``), so Newton converges in a few iterations.
         """
-        H = int(n_harmonics)
-        n = n_coefficients(H)
-        nj = self.n_joints
-        w = float(omega)
-        if n_time is None:
-            n_time = int(2 ** np.ceil(np.log2(4 * (H + 1))))
-        Fc = np.zeros(n)
-        f_in = np.asarray(force, float)
-        m = min(n, f_in.size)
-        Fc[:m] = f_in[:m]
-        E, _, P = aft_basis(H, int(n_time), "F")  # P.T rows are samples: the layout of F @ P.T
-        G, Hm = self._condensed(w, H)
-        Xf = _complex(Fc)  # (H+1,)
-        b = _real(np.einsum("jm,km,m->jk", self.joint_shapes, Hm, self.force_shape) * Xf).reshape(-1)
-        if guess is None:
-            U = b.copy()
-        else:
-            g = guess.joint if isinstance(guess, RigSteadyState) else np.asarray(guess, float).reshape(nj, -1)
-            U = np.zeros((nj, n))
-            mm = min(n, g.shape[-1])
-            U[:, :mm] = g[:, :mm]
-            U = U.reshape(-1)
-
-        def evaluate(Uv):
-            F, states, J = self._aft(Uv.reshape(nj, n), E, P, jacobian=True)
-            return Uv - b + G @ F.reshape(-1), F, states, J
-
-        scale = max(np.linalg.norm(b), 1e-300)
-
-        def error(r, Uv):
-            return np.linalg.norm(r) / max(np.linalg.norm(Uv), scale * 1e-6)
-
-        r, F, states, J = evaluate(U)
-        err = error(r, U)
-        it = 0
-        while err >= tol and it < max_iter:
-            it += 1
-            step = np.linalg.solve(np.eye(U.size) + G @ J, -r)
-            lam = 1.0
-            while True:  # step halving on the residual norm
-                Un = U + lam * step
-                rn, Fn, sn, Jn = evaluate(Un)
-                if np.linalg.norm(rn) < np.linalg.norm(r) or lam < 1e-3:
-                    break
-                lam *= 0.5
-            U, r, F, states, J = Un, rn, Fn, sn, Jn
-            err = error(r, U)
-        if not err < tol:
-            raise ConvergenceError(
-                f"rig harmonic balance at {w / (2 * np.pi):.6g} Hz did not converge: relative residual {err:.3g} "
-                f"> {tol:g} after {max_iter} Newton iterations"
-            )
-        Uj = U.reshape(nj, n)
-        Fj = F.reshape(nj, n)
-        Xm = Hm.T * (self.force_shape[:, None] * Xf[None, :] - self.joint_shapes.T @ _complex(Fj))  # (n_m, H+1)
-        return RigSteadyState(w, Fc, _real(Xm), Uj, Fj, tuple(states), it, float(err))
+        if isinstance(guess, RigSteadyState):
+            guess = guess.joint
+        laws = tuple(_RigLawAFT(law) for law in self.laws)
+        try:
+            p = self.engine(laws).solve(omega, force, n_harmonics, n_time=n_time, guess=guess, tol=tol,
+                                        max_iter=max_iter)
+        except ConvergenceError as exc:
+            raise ConvergenceError(f"rig {exc}") from None
+        states = tuple(law.state for law in laws)
+        return RigSteadyState(p.omega, p.force, p.modal, p.joint, p.joint_force, states, p.iterations, p.residual_norm)
 
     @single_threaded
     def sweep(self, omegas, force, n_harmonics=9, **kw):

@@ -200,6 +200,7 @@ class CondensedHB:
         self.omega, self.zeta, self.joint_shapes, self.force_shape, self.k_model = om, ze, ps, pf, km
         self.laws = laws
         self._rigid = rigid
+        self._cache = None  # (omega, H, G, Hm) of the last evaluation
         self._rate = any(bool(getattr(law, "rate_dependent", False)) for law in laws)
 
     @property
@@ -305,7 +306,12 @@ class CondensedHB:
         nj = self.n_joints
         n = n_coefficients(H)
         Fc = self._force_vector(force, H)
-        G, Hm = self.condensed(omega, H)
+        cached = self._cache
+        if cached is not None and cached[0] == omega and cached[1] == H:
+            G, Hm = cached[2], cached[3]
+        else:
+            G, Hm = self.condensed(omega, H)
+            self._cache = (omega, H, G, Hm)
         Xf = to_complex(Fc)
         b = self._linear_part(omega, H, Xf, Hm)
         F, JF, JFw = self.aft(U.reshape(nj, n), omega, H, n_time, jacobian=jacobian or domega, domega=domega)
