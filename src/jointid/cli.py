@@ -199,6 +199,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="harmonics of the model backbone (1: first-harmonic balance; default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no table on stdout")
 
+    p = sub.add_parser("predict", help="predict the response at new force levels with a saved identification's model",
+                       epilog="example: jointid predict results --force-levels 1,2,3.5 --out predict-out")
+    p.add_argument("results", type=Path, help="results folder written by jointid identify, or its results.json")
+    p.add_argument("--force-levels", required=True, metavar="F1,F2,...",
+                   help="force levels in the campaign's force_level units, separated by commas")
+    p.add_argument("--out", type=Path, required=True, help="output folder (results.json, report.txt, report.html, figures/)")
+    p.add_argument("--frequency-range", nargs=2, type=_float_in(0.0, 1e9), metavar=("LO", "HI"), default=None,
+                   help="band of the curves in Hz (default: the measured band, widened until the peak is inside)")
+    p.add_argument("--harmonics", type=_int_in(1, 50), default=5, help="harmonics of the harmonic balance "
+                   "(default: %(default)s)")
+    p.add_argument("--no-uncertainty", action="store_true",
+                   help="skip the standard errors of the peaks (two more solutions per model parameter)")
+    p.add_argument("--quiet", action="store_true", help="no progress and no table on stdout")
+
     p = sub.add_parser("study", help="Monte Carlo study: simulated campaigns identified and compared with the truth",
                        epilog="example: jointid study plan.toml --out study --jobs 2  (plan format: jointid.app.study)")
     p.add_argument("plan", type=Path, help="study plan (TOML: a simulation configuration with [study], [vary], [grid])")
@@ -475,8 +489,28 @@ def _backbone(args) -> int:
     return EXIT_OK
 
 
+def _predict(args) -> int:
+    from .app.predict import load_results, predict_from_results, write_predictions
+    from .io.outputset import check_output_folder
+
+    _, file = load_results(args.results)  # a bad file: one line, before any work
+    check_output_folder(args.out, "predict", inputs=(file.parent,))
+    progress = None if args.quiet else (lambda line: print(f"jointid predict: {line}", file=sys.stderr, flush=True))
+    res = predict_from_results(file, args.force_levels, frequency_range=args.frequency_range,
+                               n_harmonics=args.harmonics, uncertainty=not args.no_uncertainty, progress=progress)
+    write_predictions(res, args.out, inputs=(file.parent,))
+    if not args.quiet:
+        print(res.report())
+        print(f"\nresults written to {args.out}")
+    else:
+        for line in res.lines():
+            if "EXTRAPOLATED" in line or "FAILED" in line or "no peak" in line:
+                print(line, file=sys.stderr)
+    return EXIT_PARTIAL if res.failed else EXIT_OK
+
+
 COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal,
-            "study": _study, "backbone": _backbone}
+            "study": _study, "backbone": _backbone, "predict": _predict}
 
 
 def main(argv=None) -> int:
