@@ -42,6 +42,9 @@ FH_COLUMNS = ("frequency_hz", "force", "force_phase", "accel", "accel_phase")
 #: Columns an import may map: the record's, or a complex FRF (``frf``, or ``frf_real`` and
 #: ``frf_imag``: acceleration over force) with the force amplitude.
 FH_SOURCE_COLUMNS = FH_COLUMNS + ("frf", "frf_real", "frf_imag")
+#: Largest magnitude of a phase [rad] taken as a phase (unwrapped phases of a sweep stay far below it;
+#: a larger value is a unit mistake or garbage, and its sine and cosine would be noise).
+MAX_PHASE_RAD = 1e3
 #: How a stepped-sine test was controlled (manifest key ``control``).
 CONTROLS = ("force", "response", "phase-resonance")
 #: Most lines in one record.
@@ -74,7 +77,7 @@ class FirstHarmonicRecord:
 
 def _vector(values, L, column) -> np.ndarray:
     x = np.asarray(values)
-    if x.dtype == object or not (np.issubdtype(x.dtype, np.number) or x.dtype == bool):
+    if x.dtype == object or not np.issubdtype(x.dtype, np.number):
         raise RecordError(f"{L(column)}expected numbers, got {x.dtype} values")
     x = np.squeeze(x)
     if x.ndim == 0:
@@ -162,14 +165,24 @@ def first_harmonic_from_columns(cols: dict, source="", record=None, control="for
                     ("accel_phase", accel_phase)):
         bad = ~np.isfinite(x)
         if bad.any():
-            raise RecordError(f"{L(name)}value {x[bad][0]!r} at frequency line {int(np.argmax(bad))} (from 0) "
+            raise RecordError(f"{L(name)}value {float(x[bad][0])!r} at frequency line {int(np.argmax(bad))} (from 0) "
                               f"is not finite")
     for name, x in (("frequency_hz", f), ("force", force), ("accel", accel)):
         bad = x <= 0
         if bad.any():
             what = "frequency" if name == "frequency_hz" else "first-harmonic amplitude"
-            raise RecordError(f"{L(name)}{what} {x[bad][0]!r} at frequency line {int(np.argmax(bad))} (from 0); "
+            raise RecordError(f"{L(name)}{what} {float(x[bad][0])!r} at frequency line {int(np.argmax(bad))} (from 0); "
                               f"expected a positive value")
+    if has_accel and "accel_phase" not in cols:  # a phase of 0 on every line would be a wrong damping
+        raise RecordError(f"{L('accel_phase')}missing; the acceleration amplitude needs its phase "
+                          f"(accel_phase, in rad on the force's reference), or give the complex FRF; "
+                          f"found {sorted(cols)}")
+    for name, x in (("force_phase", force_phase), ("accel_phase", accel_phase)):
+        bad = np.abs(x) > MAX_PHASE_RAD
+        if bad.any():
+            raise RecordError(f"{L(name)}phase {float(x[bad][0])!r} rad at frequency line {int(np.argmax(bad))} "
+                              f"(from 0) is not a phase in radians (|phase| <= {MAX_PHASE_RAD:g}); for degrees "
+                              "give unit = \"deg\"")
     if n < 1:
         raise RecordError(f"{L('frequency_hz')}no lines")
     out = {"frequency_hz": f, "force": force, "force_phase": force_phase, "accel": accel, "accel_phase": accel_phase}
@@ -219,6 +232,11 @@ def _mat_value(path: Path, loaded: dict, ref: str, column: str):
             walked = f"{walked}[{i}]"
     if _is_struct(obj):
         raise RecordError(f"{loc}{ref!r} is a struct with fields {_fields(obj)}; expected numbers")
+    arr = np.asarray(obj)
+    if arr.dtype == object or not np.issubdtype(arr.dtype, np.number):
+        what = ("text" if arr.dtype.kind in "SU" else "a cell array" if arr.dtype == object else
+                "logical values" if arr.dtype == bool else f"dtype {arr.dtype}")
+        raise RecordError(f"{loc}{ref!r} holds {what}; expected numbers")
     return obj
 
 

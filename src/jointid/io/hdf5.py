@@ -80,6 +80,9 @@ def check_dataset(ds, path, channel: str, name: str | None = None) -> None:
     its type and shape before a byte is read (a compressed dataset may inflate far beyond its file)."""
     name = ds.name if name is None else name
     dt = ds.dtype
+    if _h5py().check_enum_dtype(dt) is not None:  # integer codes of named states, not measured values
+        raise RecordError(f"{where(path, channel=channel)}expected real numbers in dataset {name!r}, got an "
+                          f"enumeration of {sorted(_h5py().check_enum_dtype(dt))} (dtype {dt})")
     if dt.names is not None or dt.kind not in "iuf":
         text = dt.kind in "SU" or _h5py().check_string_dtype(dt) is not None
         what = ("compound records" if dt.names is not None else "text" if text else

@@ -62,6 +62,7 @@ campaign's tolerance (:data:`jointid.io.campaign.CSV_TIME_RTOL`) and are written
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -94,6 +95,8 @@ IMPORT_KEYS = ("fs", "channels", "data_folder", "time", "window_s")
 RECORD_KEYS = ("file", "source", "channels", "fs", "frequency_hz", "force_level", "preload", "excitation",
                "period_s", "time", "window_s", "control")
 SOURCE_KEYS = ("file", "channels", "time", "fs")
+#: Record keys about a time history, which a first-harmonic record does not have.
+FH_TIME_KEYS = ("frequency_hz", "period_s", "time", "fs", "window_s")
 #: Keys of a column of the column map given as a table.
 COLUMN_KEYS = ("channel", "unit", "scale")
 #: Factors from the units a column map may name to SI (:data:`jointid.io.units.UNITS` holds their dimensions).
@@ -197,7 +200,9 @@ def read_source(path: Path, channels: dict, fs=None, time=None) -> Channels:
             raise RecordError(str(exc)) from None
         header = [h.strip() for h in (text.splitlines() or [""])[0].split(",")]
         try:
-            rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
+            with warnings.catch_warnings():  # an empty file is said below, not by numpy's warning
+                warnings.simplefilter("ignore", UserWarning)
+                rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
         except UnicodeDecodeError:
             raise RecordError(f"{path}: CSV file must be UTF-8 text; it holds bytes that are not") from None
         except ValueError as exc:
@@ -244,6 +249,13 @@ def _channel_map(value, ctx) -> dict:
         elif not isinstance(v, str) or not v:
             raise ManifestError(f"{ctx}channels.{k} must be a channel name (text) or a table "
                                 f"{{ channel = \"...\", unit = \"g\", scale = 1.0 }}, got {v!r}")
+    seen = {}
+    for k, v in value.items():
+        name = v["channel"] if isinstance(v, dict) else v
+        if name in seen:
+            raise ManifestError(f"{ctx}channels.{seen[name]} and channels.{k} both name channel {name!r}; "
+                                "each column of the record comes from its own channel")
+        seen[name] = k
     return dict(value)
 
 
@@ -272,6 +284,9 @@ def _window(value, ctx):
 
 def _sources(entry, i, defaults, ctx):
     rctx = f"{ctx}[record {i}]: "
+    if "source" in entry and ("file" in entry or "channels" in entry):
+        raise ManifestError(f"{rctx}give 'file' (with 'channels') or [[record.source]] tables, not both "
+                            f"(found {', '.join(k for k in ('file', 'channels') if k in entry)} beside 'source')")
     if "source" in entry:
         srcs = entry["source"]
         if not isinstance(srcs, list) or not srcs or not all(isinstance(s, dict) for s in srcs):
@@ -308,6 +323,10 @@ def _validate(d: dict, desc: Path):
     if head.get("coordinates", "modal") not in COORDINATES:
         raise ManifestError(f"{desc}: [campaign] coordinates must be one of {COORDINATES}, "
                             f"got {head.get('coordinates')!r}")
+    if head.get("coordinates", "modal") == "physical" and not isinstance(d.get("structure"), dict):
+        raise ManifestError(f"{desc}: [campaign] coordinates = \"physical\" needs a [structure] table (the "
+                            "beam model and the sensor positions, copied into the campaign); got "
+                            f"{'none' if 'structure' not in d else repr(d['structure'])}")
     if not isinstance(head.get("name", ""), str):
         raise ManifestError(f"{desc}: [campaign] name must be a text, got {head.get('name')!r}")
     defaults = _channel_map(imp.get("channels", {}), f"{desc}: [import] ")
@@ -347,6 +366,12 @@ def _validate(d: dict, desc: Path):
         _label(entry.get("preload"), "preload", rctx)
         _excitation(entry, rctx)
         _window(entry.get("window_s", imp.get("window_s")), rctx)
+        if entry.get("excitation") == "first-harmonic":
+            timed = [k for k in FH_TIME_KEYS if k in entry]
+            if timed:
+                raise ManifestError(f"{rctx}{', '.join(timed)}: no meaning on a first-harmonic record (one line "
+                                    "per frequency, no time history); remove "
+                                    f"{'it' if len(timed) == 1 else 'them'}")
         if "time" in entry and (not isinstance(entry["time"], str) or not entry["time"]):
             raise ManifestError(f"{rctx}'time' must be the name of a time column or dataset, got {entry['time']!r}")
     if "time" in imp and (not isinstance(imp["time"], str) or not imp["time"]):
@@ -384,6 +409,26 @@ def _import_first_harmonic(entry, i, defaults, ctx, data_folder: Path, target: P
         files.append(f)
     rec = first_harmonic_from_columns(cols, " + ".join(files), i, entry.get("control", "force"))
     write_first_harmonic_csv(target, rec)
+
+
+def _check_time_span(rec: Channels, entry: dict, i: int) -> None:
+    """The record resolves its stated frequency and holds one period of it (or of its multisine)."""
+    n = rec.time.size
+    dt = (rec.time[-1] - rec.time[0]) / (n - 1)
+    span = n * dt
+    loc = where(str(rec.source), i)
+    f = entry.get("frequency_hz")
+    if f is not None:
+        if f >= 0.5 / dt:
+            raise RecordError(f"{loc}frequency_hz {f:g} is at or above the Nyquist frequency {0.5 / dt:.6g} Hz "
+                              f"of the record (sampling rate {1 / dt:.6g} Hz)")
+        if span * f < 1.0:
+            raise RecordError(f"{loc}the record holds {span:.6g} s, less than one period of frequency_hz "
+                              f"{f:g} ({1 / f:.6g} s)")
+    period = entry.get("period_s")
+    if entry.get("excitation") == "multisine" and period is not None and period > span * (1 + 1e-9):
+        raise RecordError(f"{loc}period_s {period:g} is longer than the record ({span:.6g} s); a multisine "
+                          "record holds at least one whole period")
 
 
 def import_campaign(description, out_dir) -> ImportResult:
@@ -443,6 +488,7 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out):
                                       f"({rec.time[0]:.6g} .. {rec.time[-1]:.6g} s)")
                 rec = Channels(rec.time[keep], {k: rec.data[k][keep] for k in rec.names},
                                dict(rec.units), source=rec.source)
+            _check_time_span(rec, entry, i)
             rel = f"records/{len(written):04d}.csv"
             write_csv_record(out / rel, rec.time, {k: rec.data[k] for k in rec.names})
         except ManifestError:
