@@ -91,6 +91,12 @@ def _load(path):
 
         (path.parent / data["import"].get("data_folder", ".")).mkdir(parents=True, exist_ok=True)
         _validate(data, path)  # the description alone; its source files are read by the slow run
+    elif "joint" in data and ("matrices" in data or "modal" in data):
+        from jointid.io.structure_model import read_structure_model
+
+        if not (path.parent / "examples").exists():  # its matrix file is in examples/, as in a checkout
+            (path.parent / "examples").symlink_to(REPO / "examples", target_is_directory=True)
+        read_structure_model(path)
     elif "study" in data:
         from jointid.app.study import load_study_plan
 

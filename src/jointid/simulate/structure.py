@@ -29,7 +29,7 @@ import scipy.linalg
 from ..errors import StructureError, unknown_key_message
 from .structure_hb import CondensedHB, HBCurve, HBPoint, default_n_time
 
-__all__ = ["LinearModel", "ModalModel", "JointElement", "StructureModel", "modal_damping"]
+__all__ = ["JointElement", "LinearModel", "ModalModel", "StructureModel", "modal_damping", "structure_from_spec"]
 
 
 def modal_damping(omega, *, zeta=None, rayleigh=None) -> np.ndarray:
@@ -274,3 +274,23 @@ class StructureModel:
         N = default_n_time(n_harmonics) if n_time is None else n_time
         return self.engine.continuation(2 * np.pi * float(f_start_hz), 2 * np.pi * float(f_end_hz),
                                         [0.0, 0.0, float(force_amplitude)], n_harmonics, n_time=N, **kw)
+
+
+def structure_from_spec(spec) -> tuple:
+    """``(StructureModel, response DOFs)`` of a checked structure model file.
+
+    ``spec`` is a :class:`jointid.io.structure_model.StructureSpec` (read by
+    :func:`jointid.io.structure_model.read_structure_model`); only its attributes are used.
+    """
+    where = f"{spec.path}: "
+    try:
+        if spec.M is not None:
+            base = LinearModel(spec.M, spec.K, spec.dof_names, zeta=spec.zeta, rayleigh=spec.rayleigh,
+                               source=spec.path)
+        else:
+            base = ModalModel.from_hz(spec.frequencies_hz, spec.zeta, spec.dof_names, spec.shapes)
+        joints = [JointElement(j.name, j.dof_a, j.dof_b, j.law, j.k_model) for j in spec.joints]
+        return StructureModel(base, joints, spec.force, n_modes=spec.n_modes), tuple(spec.response)
+    except StructureError as exc:
+        msg = str(exc)
+        raise StructureError(msg if msg.startswith(where) else where + msg) from None
