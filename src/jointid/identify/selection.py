@@ -83,7 +83,6 @@ class Candidate:
     name: str
     terms: str
     amplitude_laws: tuple = ()
-    hysteretic: str | None = None
 
     @property
     def library(self) -> TermLibrary:
@@ -98,15 +97,11 @@ class Candidate:
 
     @property
     def n_parameters(self) -> int:
-        if self.hysteretic is not None:  # k, c, the law's force scale and its nonlinear parameters
-            return 3 + HYSTERETIC_NONLINEAR[self.hysteretic]
         return int(sum(law_size(L) for L in self.orders()))
 
     @property
     def n_exponents(self) -> int:
-        """Parameters the model is nonlinear in (power-law exponents; a hysteretic law's shape)."""
-        if self.hysteretic is not None:
-            return HYSTERETIC_NONLINEAR[self.hysteretic]
+        """Power-law exponents among the parameters (nonlinear in the model)."""
         return int(sum(is_power(L) for L in self.orders()))
 
     def law_specs(self) -> dict:
@@ -114,8 +109,6 @@ class Candidate:
         return {k: (POWER if is_power(v) else int(v)) for k, v in self.amplitude_laws}
 
     def describe(self) -> str:
-        if self.hysteretic is not None:
-            return f"k q + c q' + {HYSTERETIC_TEXT[self.hysteretic]} (hysteretic)"
         laws = ", ".join(f"{k}(q_max) power law" if is_power(v) else f"{k}(q_max) order {v}"
                          for k, v in self.amplitude_laws if is_power(v) or v > 0)
         return self.terms + (f"; {laws}" if laws else "")
@@ -128,17 +121,14 @@ def _family(name, terms, damping_order=2, stiffness_order=0):
     return Candidate(name, terms, tuple(laws))
 
 
-def default_candidates(damping_order=2, hysteretic=True) -> tuple:
+def default_candidates(damping_order=2) -> tuple:
     """The physically motivated families, each with the damping law ``c(q_max)`` of ``damping_order``.
 
     The micro-slip families carry the power laws of an Iwan joint instead
     (:mod:`jointid.identify.powerlaw`): ``omega^2(q_max) = omega1^2 + s q_max^p'`` and
     ``c(q_max) = c0 + c1 q_max^p``, alone or beside a cubic spring (the joint law of
-    :func:`jointid.identify.jointlaw.fit_iwan` with its cubic part).  With ``hysteretic``, a
-    Jenkins element and Segalman's four-parameter Iwan joint beside ``k q + c q'``, fitted to the
-    loops by :class:`~jointid.identify.hysteretic.HystereticForceStateMapping`.
+    :func:`jointid.identify.jointlaw.fit_iwan` with its cubic part).
     """
-    hyst = (Candidate("Jenkins", "q + q'", (), "jenkins"), Candidate("Iwan", "q + q'", (), "iwan4")) if hysteretic else ()
     return (
         _family("linear", "q + q'", damping_order),
         _family("cubic", "q - q^3 + q'", damping_order),
@@ -149,12 +139,9 @@ def default_candidates(damping_order=2, hysteretic=True) -> tuple:
         _family("amplitude-dependent stiffness", "q + q'", damping_order, 2),
         _family("micro-slip", "q + q'", POWER, POWER),
         _family("micro-slip + cubic", "q - q^3 + q'", POWER, POWER),
-    ) + hyst
+    )
 
 
-#: Nonlinear parameters of each hysteretic law (Jenkins: slip displacement; Iwan: phi_max, chi, beta).
-HYSTERETIC_NONLINEAR = {"jenkins": 1, "iwan4": 3}
-HYSTERETIC_TEXT = {"jenkins": "Jenkins element (kt, Fs)", "iwan4": "four-parameter Iwan joint (K_T, F_S, chi, beta)"}
 #: The default candidate families (damping law of order 2).
 DEFAULT_CANDIDATES = default_candidates()
 #: Terms :func:`forward_selection` may add by default.
@@ -715,7 +702,7 @@ def forward_selection(signals_list, levels, *, base="q + q'", pool=FORWARD_POOL,
 
 def broadband_candidates(damping_order=None) -> tuple:
     """The default families without amplitude laws (a broadband record has no single ``q_max``)."""
-    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if "q" not in c.laws and c.hysteretic is None)
+    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if "q" not in c.laws)
 
 
 @single_threaded
