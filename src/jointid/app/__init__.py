@@ -1,7 +1,10 @@
 """The application layer: the workflows that a command runs, built on the core packages.
 
 * :mod:`~jointid.app.records` -- one record through the chain, and all records of a campaign;
-* :mod:`~jointid.app.workflow` -- a campaign identified: groups, damping and power laws;
+* :mod:`~jointid.app.workflow` -- a campaign identified: the chain from the records to the result;
+* :mod:`~jointid.app.campaign_fit` -- every pooled fit of a campaign: groups, damping laws, preload models, power laws;
+* :mod:`~jointid.app.campaign_result` -- what an identification returns (``CampaignResult``, results.json);
+* :mod:`~jointid.app.model_checks` -- model selection (``--terms auto``) and adequacy per preload;
 * :mod:`~jointid.app.reprediction` -- each group's measured FRF re-predicted by harmonic balance, loop errors;
 * :mod:`~jointid.app.channel_delay` -- the channel-delay step of an identification;
 * :mod:`~jointid.app.broadband_records` -- multisine and random records of a campaign;

@@ -2,8 +2,8 @@
 
 With ``IdentifySettings.channel_delay = "estimate"`` the delay of the response channel
 behind the excitation channel is estimated from the stepped-sine records with the same
-pooled fits the identification uses (one damping law per preload, the delay shared by
-every record); with a number it is taken as known.  Every record is then corrected (its
+pooled fits the identification uses (:func:`jointid.app.campaign_fit.pooled_fit`; one damping
+law per preload, the delay shared by every record); with a number it is taken as known.  Every record is then corrected (its
 response series re-timed) and its single-record fit repeated, before the groups and laws
 are identified.  The delay and its standard error are reported in ``results.json``
 (``channel_delay``).
@@ -11,35 +11,22 @@ are identified.  The delay and its standard error are reported in ``results.json
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import replace
 
 import numpy as np
 
-from ..errors import IdentificationError, JointidWarning
+from ..errors import IdentificationError
 from ..identify.delay import (ChannelDelay, ChannelDelayEstimator, check_delay_plausible, delay_c_stderr,
                               delay_refusal, shift_response)
-from ..identify.fsm import ForceStateMapping, PooledForceStateMapping
-from ..identify.gain import PooledGainForceStateMapping
+from ..identify.fsm import ForceStateMapping
 from ..signal.checks import Z_LIMIT, Flag
+from .campaign_fit import pooled_fit
 
 __all__ = ["correct_channel_delay"]
 
 #: The plausibility flag a channel delay explains (:mod:`jointid.signal.checks`): a record that
 #: carries it is used for the estimate, and loses it when its corrected input power is positive.
 DELAY_FLAG = "negative_input_power"
-
-
-def _pooled(signals, settings):
-    """The group's pooled fit as the workflow makes it (gain-free when the gain is unknown)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointidWarning)
-        if settings.force_gain == "known":
-            return PooledForceStateMapping(settings.terms, weighting=settings.weighting).fit(signals).result_
-        from .workflow import _gain_free
-
-        gain = PooledGainForceStateMapping(settings.terms, weighting=settings.weighting).fit(signals).result_
-        return _gain_free(gain, settings.terms)
 
 
 def correct_channel_delay(outcomes, settings, use=None):
@@ -80,7 +67,7 @@ def correct_channel_delay(outcomes, settings, use=None):
         def fit_groups(current):
             out = {}
             for key, sigs in current.items():
-                pooled = _pooled(sigs, settings)
+                pooled = pooled_fit(sigs, settings)[0]  # as the campaign fit makes it
                 if "c" not in pooled.own_names or not np.isfinite(pooled.omega1):
                     raise IdentificationError("channel delay: the terms need a per-record damping term q'")
                 out[key] = (pooled.get("c"), pooled.get_stderr("c"), 2 * np.pi * np.asarray(pooled.frequency_hz),

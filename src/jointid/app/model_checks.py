@@ -4,24 +4,24 @@
 * :func:`campaign_adequacy` runs the checks of :mod:`jointid.identify.adequacy` on every
   preload of an identified campaign: its force levels' pooled fits, its preload model and
   its usable records;
-* :func:`campaign_selection` ranks the candidate models of every preload
-  (:func:`jointid.identify.selection.select_model`) from the records of a first pass;
-* :func:`identify_auto` is ``identify_campaign`` with the terms chosen by the data: a
-  first pass with the seed's terms gives the records' state signals, the selection per
-  preload picks the model, and the campaign is identified again with the selected terms
-  (the union over the preloads), each preload's model being its own selection; the
-  groups' FRFs are re-predicted with the selected models.
+* :func:`preload_selections` ranks the candidate models of every preload
+  (:func:`jointid.identify.selection.select_model`) from a campaign's processed records, and
+  :func:`campaign_selection` does so for an identified campaign;
+* :func:`union_terms` is the terms the campaign is identified with once the models are
+  selected (the union over the preloads; each preload's model is its own selection).
+  :func:`jointid.app.workflow.identify_campaign` with ``terms="auto"`` runs these steps.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
 
 from ..errors import IdentificationError, JointidWarning
 from ..identify.terms import SEED_TERMS, library
+from .campaign_fit import in_pooled_fits
 
-__all__ = ["AUTO", "is_auto", "campaign_adequacy", "campaign_selection", "identify_auto", "silverbox_multilevel_selection"]
+__all__ = ["AUTO", "is_auto", "campaign_adequacy", "preload_selections", "campaign_selection", "union_terms",
+           "silverbox_multilevel_selection"]
 
 #: The ``terms`` value that asks for model selection.
 AUTO = "auto"
@@ -31,9 +31,8 @@ def is_auto(terms) -> bool:
     return isinstance(terms, str) and terms.strip().lower() == AUTO
 
 
-def _preload_records(result, preload):
-    keep = result.settings.keep_flagged
-    return [o for o in result.records if o.spec.preload == preload and (o.ok if keep else o.usable)]
+def _preload_records(records, settings, preload):
+    return [o for o in records if o.spec.preload == preload and in_pooled_fits(o, settings)]
 
 
 def campaign_adequacy(result) -> dict:
@@ -46,7 +45,7 @@ def campaign_adequacy(result) -> dict:
 
     out, errors = {}, {}
     for preload, model in result.models.items():
-        recs = _preload_records(result, preload)
+        recs = _preload_records(result.records, result.settings, preload)
         level_fits = [(g.force_level, g.pooled) for g in result.groups if g.preload == preload]
         try:
             fits = [o.fit for o in recs]
@@ -64,19 +63,20 @@ def campaign_adequacy(result) -> dict:
     return out, errors
 
 
-def campaign_selection(result, **kw) -> tuple:
-    """:func:`~jointid.identify.selection.select_model` per preload of an identified campaign.
+def preload_selections(records, settings, **kw) -> tuple:
+    """:func:`~jointid.identify.selection.select_model` per preload over a campaign's processed records
+    (those that enter the pooled fits with ``settings``).
 
     Returns ``({preload: SelectionResult or None}, {preload: error})``.
     """
     from ..identify.selection import select_model
 
     out, errors = {}, {}
-    preloads = list(dict.fromkeys(o.spec.preload for o in result.records if o.ok))
+    preloads = list(dict.fromkeys(o.spec.preload for o in records if o.ok))
     for preload in preloads:
-        recs = _preload_records(result, preload)
+        recs = _preload_records(records, settings, preload)
         try:
-            if result.settings.force_gain != "known":
+            if settings.force_gain != "known":
                 raise IdentificationError("model selection needs a known force gain (the restoring force is "
                                           "force minus acceleration)")
             if len({o.spec.force_level for o in recs}) < 2:
@@ -84,15 +84,24 @@ def campaign_selection(result, **kw) -> tuple:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", JointidWarning)
                 out[preload] = select_model([o.signals for o in recs], [o.spec.force_level for o in recs],
-                                            damping_order=result.settings.damping_order,
-                                            weighting=result.settings.weighting, preload=preload, **kw)
+                                            damping_order=settings.damping_order,
+                                            weighting=settings.weighting, preload=preload, **kw)
         except IdentificationError as exc:
             out[preload] = None
             errors[preload] = f"preload {preload}: no model selection: {exc}"
     return out, errors
 
 
-def _union_terms(selections) -> str:
+def campaign_selection(result, **kw) -> tuple:
+    """:func:`preload_selections` of an identified campaign (its records and settings).
+
+    Returns ``({preload: SelectionResult or None}, {preload: error})``.
+    """
+    return preload_selections(result.records, result.settings, **kw)
+
+
+def union_terms(selections) -> str:
+    """The terms of every selected model (their union, in a fixed order); the seed's terms when none."""
     names = []
     for sel in selections.values():
         if sel is not None:
@@ -103,43 +112,6 @@ def _union_terms(selections) -> str:
         return " + ".join(SEED_TERMS)
     order = {n: i for i, n in enumerate(("q", "q^2", "-q^3", "|q|q", "q^5", "q'", "|q'|q'", "q'^3", "sign(q')"))}
     return " + ".join(sorted(names, key=lambda n: order.get(n, 99)))
-
-
-def identify_auto(campaign, settings):
-    """Identify a campaign with the restoring-force model chosen per preload by the data.
-
-    The records are processed with the seed's terms, the candidate models of each preload
-    are ranked (:func:`campaign_selection`), and the campaign is identified again with the
-    selected terms; each preload's model (results.json ``models``) is its selected model
-    with its amplitude laws, and the groups' FRFs are re-predicted with it.  A campaign where
-    no preload can be selected (a single force level) keeps the seed's terms and says why
-    under ``selection``.
-    """
-    from ..io.campaign import Campaign, load_campaign
-    from .workflow import identify_campaign
-
-    if not isinstance(campaign, Campaign):
-        campaign = load_campaign(campaign)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointidWarning)
-        first = identify_campaign(campaign, replace(settings, terms=" + ".join(SEED_TERMS), repredict=False))
-    selections, errors = campaign_selection(first)
-    for e in errors.values():
-        warnings.warn(e, JointidWarning, stacklevel=5)  # past _identify_campaign, identify_campaign, its wrapper
-    terms = _union_terms(selections)
-    result = identify_campaign(campaign, replace(settings, terms=terms, repredict=False))
-    models = dict(result.models)
-    for p, sel in selections.items():
-        if sel is not None and sel.model is not None:
-            models[p] = sel.model
-    result = replace(result, models=models, selections=selections, selection_errors=errors)
-    adequacy, adequacy_errors = campaign_adequacy(result)
-    result = replace(result, adequacy=adequacy, adequacy_errors=adequacy_errors)
-    if settings.repredict:  # with the selected models (jointid.app.reprediction.identified_model)
-        from .reprediction import with_repredictions
-
-        result = with_repredictions(result)
-    return result
 
 
 def silverbox_multilevel_selection(levels=None, *, skip_periods=5, criterion="bic"):

@@ -126,6 +126,7 @@ class RecordOutcome:
     omega1_own: float | None = None  # with an unknown force gain: the record's omega1, shared inertia held
     warning_types: tuple = field(default=(), repr=False, compare=False)  # category of each warning
     flags: tuple = ()  # Flag of each failed plausibility check
+    energy_measured: float | None = None  # energy per cycle of the recorded force (jointid.app.campaign_fit)
 
     @property
     def ok(self) -> bool:
