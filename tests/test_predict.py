@@ -67,6 +67,28 @@ def _handmade(folder, scale=0.8):
     return folder
 
 
+def test_the_demo_results_give_one_prediction_per_preload(tmp_path, capsys):
+    """The demo's results.json (one identification per preload under ``preloads``): each preload's
+    model, its own force scaling, one figure per preload."""
+    parts = []
+    for preload, scale in ((120, 0.1), (540, 0.2)):
+        d = json.loads((_handmade(tmp_path / str(preload), scale) / "results.json").read_text())
+        for e in d["models"] + d["groups"] + d["reprediction"]["groups"]:
+            e["preload"] = preload
+        parts.append({"preload": preload, "identification": d})
+    demo = tmp_path / "demo-out"
+    demo.mkdir()
+    (demo / "results.json").write_text(json.dumps({"run_id": "x", "preloads": parts}))
+    rc = main(["predict", str(demo), "--force-levels", "10", "--out", str(tmp_path / "o"), "--no-uncertainty",
+               "--quiet"])
+    assert rc == 0
+    d = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert [(e["preload"], e["modal_force"]) for e in d["predictions"]] == [(120, pytest.approx(1.0)),
+                                                                            (540, pytest.approx(2.0))]
+    assert sorted(p.name for p in (tmp_path / "o" / "figures").iterdir()) == ["predict_120.png", "predict_540.png"]
+    assert "EXTRAPOLATED" in capsys.readouterr().err
+
+
 @pytest.fixture
 def handmade(tmp_path):
     return _handmade(tmp_path / "results")
@@ -208,3 +230,36 @@ def test_output_folder_is_never_the_results_folder(handmade, capsys):
     rc = main(["predict", str(handmade), "--force-levels", "1", "--out", str(handmade)])
     assert rc == 2
     assert (handmade / "results.json").is_file()
+
+
+@pytest.mark.slow
+def test_peak_standard_errors_are_calibrated_by_monte_carlo(tmp_path):
+    """Over campaigns with independent noise, (predicted - true) / se of the held-out top level's
+    peak frequency and amplitude has a spread near 1 (a standard error that means what it says)."""
+    import warnings
+
+    from jointid.app.predict import predict_from_results
+    from jointid.app.synthesis import simulate_campaign
+    from jointid.app.workflow import identify_campaign
+
+    f_true = q_true = None
+    z = []
+    for seed in range(12):
+        cfg = _config(FITTED)
+        cfg["excitation"]["n_frequencies"] = 16
+        cfg["acquisition"].update(seed=100 + seed, periods=20.0)
+        camp = simulate_campaign(cfg, tmp_path / f"c{seed}")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = identify_campaign(camp, damping_order=0, repredict=False)
+        summary = res.summary()
+        summary["reprediction"] = {"groups": [{"preload": "p1", "force_level": F, "forcing": F} for F in FITTED]}
+        (p,) = predict_from_results(summary, [TOP]).predictions
+        if f_true is None:
+            f_true, q_true = _true_peak(TOP, p.peak_frequency_hz - 1.0)
+        z.append(((p.peak_frequency_hz - f_true) / p.peak_frequency_hz_stderr,
+                  (p.peak_q_max - q_true) / p.peak_q_max_stderr))
+    z = np.asarray(z)
+    sd = np.sqrt(np.mean(z**2, axis=0))  # about the truth: bias and spread together
+    assert np.all(np.abs(z) < 4.5), z
+    assert np.all((0.5 < sd) & (sd < 1.7)), (sd, z)

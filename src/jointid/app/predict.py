@@ -92,10 +92,32 @@ def load_results(path):
         results = json.loads(file.read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError) as exc:
         raise RecordError(f"{file}: not a readable results.json ({str(exc)[:120]})") from None
+    if isinstance(results, dict) and "models" not in results:
+        results = _identifications(results)
     if not isinstance(results, dict) or "models" not in results:
-        raise RecordError(f"{file}: not a results.json of jointid identify (a JSON object with 'models' expected)")
+        raise RecordError(f"{file}: not a results.json of jointid identify or demo (a JSON object with 'models' "
+                          "or 'preloads' expected)")
     check_results_for_backbones(results, str(file))
     return results, file
+
+
+def _identifications(results):
+    """The demo's results.json (``preloads[*].identification``, one identify summary per preload)
+    as one identify summary; anything else is returned as it is."""
+    pre = results.get("preloads")
+    if not (isinstance(pre, list) and pre and all(isinstance(e, dict) and isinstance(e.get("identification"), dict)
+                                                   for e in pre)):
+        return results
+    merged = {"models": [], "groups": [], "reprediction": {"groups": []}, "run_id": results.get("run_id")}
+    for e in pre:
+        ident = e["identification"]
+        for key in ("models", "groups"):
+            part = ident.get(key)
+            merged[key] += part if isinstance(part, list) else []
+        rep = ident.get("reprediction")
+        if isinstance(rep, dict) and isinstance(rep.get("groups"), list):
+            merged["reprediction"]["groups"] += rep["groups"]
+    return merged
 
 
 def parse_force_levels(text, source="--force-levels") -> tuple:
@@ -403,9 +425,40 @@ def _levels_text(levels) -> str:
     return f"{format_value(min(levels))}-{format_value(max(levels))}" if len(levels) > 1 else format_value(levels[0])
 
 
-def _peak_stderr(entry, Q, span, n_harmonics, nominal):
-    """Standard errors of the peak frequency and amplitude from the model's covariance
-    (central differences over one standard error of each parameter), or ``(nan, nan, note)``."""
+def _peak_near(model, Q, states, n_harmonics):
+    """The peak of ``model`` from its steady states at the frequencies of ``states`` (the nominal
+    curve's points about its peak, each the Newton guess of its own point), or ``None`` when a
+    point leaves its branch (a fold moved past it) or the largest point is no longer inside."""
+    from ..errors import ConvergenceError
+    from ..simulate.hbm import steady_state
+
+    w, q = [], []
+    for st in states:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                new = steady_state(model, st.omega, Q, n_harmonics, guess=st, stability=False)
+        except (ConvergenceError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+        if not abs(new.q_max / st.q_max - 1.0) < 0.05:  # another branch
+            return None
+        w.append(st.omega)
+        q.append(new.q_max)
+    k = int(np.argmax(q))
+    if k in (0, len(q) - 1):
+        return None
+    return _located_peak(np.asarray(w), np.asarray(q))
+
+
+def _peak_stderr(entry, Q, span, n_harmonics, response, peak):
+    """Standard errors of the peak frequency and amplitude from the model's covariance, or
+    ``(nan, nan, note)``.
+
+    Central differences over one standard error of each parameter; the perturbed models are
+    solved at the nominal curve's frequencies about its peak (Newton from the nominal points:
+    the same points for every model, so the located peaks differ smoothly), and by a whole
+    continuation where a point leaves its branch.
+    """
     cov = entry.get("covariance")
     if cov is None:
         return float("nan"), float("nan"), "no covariance in the results: no standard error"
@@ -414,20 +467,30 @@ def _peak_stderr(entry, Q, span, n_harmonics, nominal):
     if C.shape != (theta.size, theta.size) or not np.all(np.isfinite(C)):
         return float("nan"), float("nan"), "the covariance holds undefined entries: no standard error"
     se = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    i = peak[2]
+    states = [response.state(j) for j in range(max(i - 3, 0), min(i + 4, len(response)))]
+    base = _peak_near(model_of_entry(entry), Q, states, n_harmonics)  # the nominal peak on these points
     J = np.zeros((2, theta.size))
-    for i in range(theta.size):
-        if not se[i] > 0:
+    for k in range(theta.size):
+        if not se[k] > 0:
             continue
         vals = []
         for sign in (1.0, -1.0):
             t = theta.copy()
-            t[i] += sign * se[i]
-            _, pk, _ = predict_peak(model_of_entry(entry, t), Q, span, n_harmonics, widen=False)
+            t[k] += sign * se[k]
+            model = model_of_entry(entry, t)
+            pk = None if base is None else _peak_near(model, Q, states, n_harmonics)
             if pk is None:
-                return float("nan"), float("nan"), (f"the peak leaves the band when {entry['parameter_names'][i]} "
+                _, pk, _ = predict_peak(model, Q, span, n_harmonics, widen=False)
+                pk = None if pk is None else (pk[0], pk[1], None)
+                ref = peak
+            else:
+                ref = base
+            if pk is None:
+                return float("nan"), float("nan"), (f"the peak leaves the band when {entry['parameter_names'][k]} "
                                                     "moves by one standard error: no standard error")
-            vals.append(pk[:2])
-        J[:, i] = (np.asarray(vals[0]) - np.asarray(vals[1])) / (2 * se[i])
+            vals.append(np.asarray(pk[:2]) - np.asarray(ref[:2]))  # the change of the peak
+        J[:, k] = (vals[0] - vals[1]) / (2 * se[k])
     V = J @ C @ J.T
     return float(np.sqrt(max(V[0, 0], 0.0))), float(np.sqrt(max(V[1, 1], 0.0))), None
 
@@ -481,7 +544,9 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
         if isinstance(rng, list) and len(rng) == 2 and all(_numeric(v) for v in rng):
             beyond = not (rng[0] * (1 - 1e-9) <= pq <= rng[1] * (1 + 1e-9))
             if beyond:
-                notes.append(f"peak amplitude {pq:.4g} outside the fitted q_max range {rng[0]:.4g}-{rng[1]:.4g}: "
+                where = (f"{100 * (pq / rng[1] - 1):.2g} % above the largest fitted q_max {rng[1]:.4g}" if pq > rng[1]
+                         else f"below the smallest fitted q_max {rng[0]:.4g}")
+                notes.append(f"peak amplitude {pq:.4g} {where}: "
                              + ("the amplitude laws are extrapolated" if model.amplitude_laws
                                 else "beyond the amplitudes the model was fitted on"))
         lib = library(entry["terms"])
@@ -492,7 +557,7 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
                              "the damping law is not physical there")
         if uncertainty:
             try:
-                sf, sq, why = _peak_stderr(entry, Q, span, n_harmonics, peak)
+                sf, sq, why = _peak_stderr(entry, Q, span, n_harmonics, r, peak)
             except (JointidError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
                 sf, sq, why = float("nan"), float("nan"), f"standard error not computed: {exc}"
             if why:
