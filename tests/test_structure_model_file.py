@@ -172,3 +172,25 @@ dofs = ["b"]
     (tmp_path / "m.npz").write_bytes(b"not a zip file")
     with pytest.raises(ManifestError, match="cannot read m.npz"):
         read_structure_model(p)
+
+
+def test_predict_command_on_the_documented_model(lap, tmp_path, capsys):
+    import json
+
+    from jointid.cli import EXIT_OK, main
+
+    out = tmp_path / "lap-out"
+    assert main(["predict", str(lap), "--force-levels", "0.5,5", "--frequency-range", "72", "88", "--harmonics", "3",
+                 "--out", str(out), "--quiet"]) == EXIT_OK
+    res = json.loads((out / "results.json").read_text())
+    assert [p["force_level"] for p in res["predictions"]] == [0.5, 5.0]
+    assert (out / "figures" / "structure_frf.png").is_file() and (out / "report.txt").is_file()
+    lo, hi = (p["peaks"]["B.w10"] for p in res["predictions"])
+    # the joint slips more at 5 N: the peak moves down from the stuck joint's 84.19 Hz, and further at 5 N
+    assert 72 < hi["peak_frequency_hz"] < lo["peak_frequency_hz"] < 84.19
+    for p in res["predictions"]:
+        assert p["max_residual"] < 1e-8 and p["error"] == ""
+        f = np.array(p["curve"]["frequency_hz"])
+        assert f[0] == pytest.approx(72.0) and f[-1] == pytest.approx(88.0)
+        # the located peak is at least the largest continued point
+        assert p["peaks"]["B.w10"]["peak_amplitude"] >= max(p["curve"]["amplitude"]["B.w10"]) * (1 - 1e-12)

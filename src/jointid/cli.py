@@ -201,7 +201,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("predict", help="predict the response at new force levels with a saved identification's model",
                        epilog="example: jointid predict results --force-levels 1,2,3.5 --out predict-out")
-    p.add_argument("results", type=Path, help="results folder written by jointid identify, or its results.json")
+    p.add_argument("results", type=Path, help="results folder written by jointid identify, or its results.json, "
+                   "or a structure model file MODEL.toml (docs/formats.md)")
     p.add_argument("--force-levels", required=True, metavar="F1,F2,...",
                    help="force levels in the campaign's force_level units, separated by commas")
     p.add_argument("--out", type=Path, required=True, help="output folder (results.json, report.txt, report.html, figures/)")
@@ -226,75 +227,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _parse_bands(text: str):
-    """``"24-29,140-175"`` -> ``[(24.0, 29.0), (140.0, 175.0)]``."""
-    bands = []
-    for part in text.split(","):
-        try:
-            lo, hi = (float(v) for v in part.strip().split("-"))
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"--bands: expected LO-HI pairs in Hz separated by commas, got {part!r}")
-        if not 0 < lo < hi:
-            raise argparse.ArgumentTypeError(f"--bands: expected 0 < LO < HI, got {part!r}")
-        bands.append((lo, hi))
-    return bands
-
-
 def _modal(args) -> int:
-    import numpy as np
+    from .app.modal_workflow import modal_workflow, write_modal
 
-    from .io.campaign import read_toml
-    from .io.results import atomic_savefig, write_json
-    from .modal.structure import Structure
-
-    data = read_toml(args.structure, "structure file")
-    structure = Structure.from_mapping(data, source=str(args.structure))
-    print(structure.report())
-    summary = {"structure": structure.summary()}
-    figures = []
-    if structure.modes is not None:
-        from .report.modal_plots import plot_mode_shapes
-
-        fig, _ = plot_mode_shapes(structure.modes, sensors=dict(structure.sensors),
-                                  force_position=structure.force_position)
-        figures.append(("mode_shapes.png", fig))
-    if structure.update is not None:
-        from .report.modal_plots import plot_update_residuals
-
-        figures.append(("updating_residuals.png", plot_update_residuals(structure.update)[0]))
-    if args.frf is not None:
-        from .errors import IdentificationError
-        from .io.campaign import RecordSpec, read_record
-        from .report.formatting import format_percent, format_value
-        from .report.modal_plots import plot_frf
-        from .signal.frf import fit_modes, h1_estimate
-
-        try:
-            bands = None if args.bands is None else _parse_bands(args.bands)
-        except argparse.ArgumentTypeError as exc:
-            raise IdentificationError(str(exc)) from None
-        column = args.response or next(iter(structure.sensors))
-        spec = RecordSpec(0, str(args.frf), args.frf.resolve(), None, None, None)
-        rec = read_record(spec, required=("time", structure.force_column, column))
-        fs = 1.0 / float(np.mean(np.diff(rec.time)))
-        try:
-            frf = h1_estimate(rec.channels[structure.force_column], rec.channels[column], fs, nperseg=args.nperseg)
-            fit = fit_modes(frf, None if bands else args.modes, bands=bands, f_range=args.f_range,
-                            max_order=args.order, min_coherence=args.min_coherence)
-        except (IdentificationError, ValueError) as exc:
-            raise IdentificationError(f"{args.frf}: H1 of channel {column!r}: {exc}") from None
-        print(f"\nH1 of {column!r} in {args.frf}: {frf.report()}")
-        print(fit.report())
-        for i, (f, z, ok) in enumerate(zip(fit.frequencies_hz, fit.damping_ratios, fit.trusted), 1):
-            print(f"  mode {i}: {format_value(f, 6)} Hz, damping ratio {format_percent(100 * z)}"
-                  f"{'' if ok else ' (NOT trusted)'}")
-        summary["frf_fit"] = {"frequencies_hz": fit.frequencies_hz, "damping_ratios": fit.damping_ratios,
-                              "record": str(args.frf), "channel": column, "h1": frf.summary(), **fit.summary()}
-        figures.append(("frf.png", plot_frf(frf, fit=fit)[0]))
+    run = modal_workflow(args.structure, frf=args.frf, response=args.response, modes=args.modes, bands=args.bands,
+                         f_range=args.f_range, order=args.order, nperseg=args.nperseg,
+                         min_coherence=args.min_coherence, echo=print)
     if args.out is not None:  # (default modal-out)
-        write_json(args.out / "modal.json", summary)
-        for name, fig in figures:
-            atomic_savefig(fig, args.out / name, dpi=120)
+        write_modal(run, args.out)
         print(f"\nwritten to {args.out}")
     return EXIT_OK
 
@@ -493,6 +433,9 @@ def _predict(args) -> int:
     from .app.predict import load_results, predict_from_results, write_predictions
     from .io.outputset import check_output_folder
 
+    if args.results.suffix.lower() == ".toml":  # a structure model file (docs/formats.md)
+        return _predict_structure(args)
+
     _, file = load_results(args.results)  # a bad file: one line, before any work
     check_output_folder(args.out, "predict", inputs=(file.parent,))
     progress = None if args.quiet else (lambda line: print(f"jointid predict: {line}", file=sys.stderr, flush=True))
@@ -506,6 +449,23 @@ def _predict(args) -> int:
         for line in res.lines():
             if "EXTRAPOLATED" in line or "FAILED" in line or "no peak" in line:
                 print(line, file=sys.stderr)
+    return EXIT_PARTIAL if res.failed else EXIT_OK
+
+
+def _predict_structure(args) -> int:
+    from .app.predict import parse_force_levels
+    from .app.structure_predict import predict_structure, write_structure_predictions
+    from .io.outputset import check_output_folder
+
+    levels = parse_force_levels(args.force_levels)
+    check_output_folder(args.out, "predict", inputs=(args.results.parent,))
+    progress = None if args.quiet else (lambda line: print(f"jointid predict: {line}", file=sys.stderr, flush=True))
+    res = predict_structure(args.results, force_levels=levels, frequency_range=args.frequency_range,
+                            n_harmonics=args.harmonics, progress=progress)
+    write_structure_predictions(res, args.out, inputs=(args.results.parent,))
+    if not args.quiet:
+        print(res.report())
+        print(f"\nresults written to {args.out}")
     return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
