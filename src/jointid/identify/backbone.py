@@ -301,13 +301,16 @@ def _fundamental(t, x, omega):
     Least squares on ``[1, cos, sin]``; the standard error is that of the amplitude (the
     residual RMS times ``sqrt(2 / n)`` for a record of many periods).
     """
+    from ..signal.harmonics import _blocks, _streaming_fit
+
     t = np.asarray(t, float)
     x = np.asarray(x, float)
-    tau = t - t[0]
-    A = np.column_stack([np.ones_like(tau), np.cos(omega * tau), np.sin(omega * tau)])
-    coef, *_ = np.linalg.lstsq(A, x, rcond=None)
-    r = x - A @ coef
-    sigma = np.sqrt(r @ r / max(x.size - 3, 1))
+    # block by block (normal equations on the sinusoids at every omega (t - t0), then the
+    # residual): a long record is never copied
+    series, _ = _streaming_fit(t, x, float(omega), 1, float(t[0]), "fundamental", origin=float(t[0]))
+    coef = series.coefficients
+    rr = sum(float(np.sum((x[sl] - series(t[sl])) ** 2)) for sl in _blocks(x.size))
+    sigma = np.sqrt(rr / max(x.size - 3, 1))
     X = (coef[1] - 1j * coef[2]) * np.exp(-1j * omega * t[0])
     return X, sigma * np.sqrt(2.0 / x.size)
 

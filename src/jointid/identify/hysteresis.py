@@ -79,25 +79,26 @@ def hysteresis_loop(signals: StateSignals, terms, coefficients, *, filtered=True
     others = np.array(coefficients)
     others[i_lin] = 0.0
     t = signals.t
-    q_all, v_all, a_fit = signals.states()
     if filtered:
-        sel = t < t[0] + 1.0 / signals.frequency_hz
-        q, v = q_all[sel], v_all[sel]
+        m = int(np.searchsorted(t, t[0] + 1.0 / signals.frequency_hz))  # the samples of the first period
+        q, v, a_fit = signals.states(stop=m)
         fseries, _ = fit_harmonics(t, signals.force, signals.omega, signals.acceleration.n_harmonics, channel="force")
-        measured = fseries(t[sel]) - a_fit[sel] - coefficients[i_lin] * q
+        measured = fseries(t[:m]) - a_fit - coefficients[i_lin] * q
         identified = lib.restoring_force(q, v, others)
         return HysteresisLoop(q, measured, identified, True, signals.frequency_hz)
-    # synchronous average in phase bins: identical averaging of measured and identified values
+    # synchronous average in phase bins: identical averaging of measured and identified values,
+    # block by block (a long record is never held as a whole in states)
     dt = (t[-1] - t[0]) / (t.size - 1)
     n_bins = int(min(256, max(8, np.floor(1.0 / (signals.frequency_hz * dt)))))
-    phase = np.mod((t - t[0]) * signals.frequency_hz, 1.0)
-    idx = np.minimum((phase * n_bins).astype(int), n_bins - 1)
-    count = np.bincount(idx, minlength=n_bins)
+    count = np.zeros(n_bins)
+    sums = np.zeros((3, n_bins))
+    for sl, q, v, _ in signals.exact_blocks():
+        phase = np.mod((t[sl] - t[0]) * signals.frequency_hz, 1.0)
+        idx = np.minimum((phase * n_bins).astype(int), n_bins - 1)
+        count += np.bincount(idx, minlength=n_bins)
+        raw = signals.force[sl] - signals.accel_measured[sl] - coefficients[i_lin] * q
+        for row, x in zip(sums, (q, raw, lib.restoring_force(q, v, others))):
+            row += np.bincount(idx, x, n_bins)
     keep = count > 0
-
-    def average(x):
-        return (np.bincount(idx, x, n_bins)[keep]) / count[keep]
-
-    raw = signals.force - signals.accel_measured - coefficients[i_lin] * q_all
-    return HysteresisLoop(average(q_all), average(raw), average(lib.restoring_force(q_all, v_all, others)), False,
-                          signals.frequency_hz)
+    q_avg, raw_avg, identified_avg = (row[keep] / count[keep] for row in sums)
+    return HysteresisLoop(q_avg, raw_avg, identified_avg, False, signals.frequency_hz)

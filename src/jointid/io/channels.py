@@ -7,8 +7,9 @@ named 1-D signals, their units, the file they came from and free metadata.
 A :class:`Channels` is validated when it is made (see :func:`validate_channels`), so a
 record that exists is always usable: every channel is 1-D, finite and as long as the
 time vector, and the time vector is strictly increasing and uniform.  The arrays are
-stored as read-only ``float64`` copies, so a record cannot be changed in place; build a
-new one with :meth:`Channels.select`, :meth:`Channels.rename`, :meth:`Channels.with_channel`
+stored as read-only ``float64`` copies (an array that is already read-only ``float64`` and
+owns its data, as the readers return, is kept as it is: a long record is not held twice),
+so a record cannot be changed in place; build a new one with :meth:`Channels.select`, :meth:`Channels.rename`, :meth:`Channels.with_channel`
 or :func:`dataclasses.replace`.
 
 Examples
@@ -42,7 +43,19 @@ TIME_RTOL = 1e-6
 MAX_SAMPLES = 20_000_000
 
 
+#: Samples per block of the checks of :func:`validate_channels` (no temporary as long as the record).
+BLOCK = 1 << 18
+
+
+def _blocks(n: int, size: int = BLOCK):
+    for start in range(0, n, size):
+        yield slice(start, min(n, start + size))
+
+
 def _readonly_float(values: Any) -> np.ndarray:
+    if (isinstance(values, np.ndarray) and values.dtype == np.float64 and values.flags.owndata
+            and not values.flags.writeable):
+        return values  # already a read-only float64 array of its own: a copy would only double a long record
     arr = np.array(values, dtype=np.float64, copy=True)
     arr.setflags(write=False)
     return arr
@@ -356,27 +369,32 @@ def validate_channels(time: Any, data: Mapping[str, Any], *, source: str | None 
         raise RecordError(
             f"{where(src, channel='time')}expected at least 2 samples, got {n}"
         )
-    bad = ~np.isfinite(t)
-    if bad.any():
+    if not _all_finite(t):
+        bad = ~np.isfinite(t)
         i = int(np.flatnonzero(bad)[0])
         raise RecordError(
             f"{where(src, channel='time')}expected finite times, got {int(bad.sum())} "
             f"non-finite value(s), first at sample {i} ({t[i]})"
         )
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        i = int(np.flatnonzero(steps <= 0)[0])
-        raise RecordError(
-            f"{where(src, channel='time')}expected strictly increasing times, got "
-            f"t[{i + 1}] = {t[i + 1]!r} after t[{i}] = {t[i]!r}"
-        )
     dt = (t[-1] - t[0]) / (n - 1)
-    dev = np.abs(steps - dt)
-    worst = int(np.argmax(dev))
-    if dev[worst] > time_rtol * dt:
+    worst, worst_dev = 0, -1.0
+    for sl in _blocks(n - 1):  # the steps block by block: no temporary as long as the record
+        steps = t[sl.start + 1 : sl.stop + 1] - t[sl]
+        if np.any(steps <= 0):
+            i = sl.start + int(np.flatnonzero(steps <= 0)[0])
+            raise RecordError(
+                f"{where(src, channel='time')}expected strictly increasing times, got "
+                f"t[{i + 1}] = {t[i + 1]!r} after t[{i}] = {t[i]!r}"
+            )
+        dev = np.abs(steps - dt)
+        j = int(np.argmax(dev))
+        if dev[j] > worst_dev:
+            worst, worst_dev = sl.start + j, float(dev[j])
+    if worst_dev > time_rtol * dt:
+        step = t[worst + 1] - t[worst]
         raise RecordError(
             f"{where(src, channel='time')}expected a uniform time step (within "
-            f"{time_rtol:g} of dt = {dt:.9g} s), got step {steps[worst]:.9g} s between "
+            f"{time_rtol:g} of dt = {dt:.9g} s), got step {step:.9g} s between "
             f"samples {worst} and {worst + 1}"
         )
     for name, values in data.items():
@@ -395,13 +413,18 @@ def validate_channels(time: Any, data: Mapping[str, Any], *, source: str | None 
             raise RecordError(
                 f"{where(src, channel=name)}expected real numbers, got dtype {v.dtype}"
             )
-        bad = ~np.isfinite(v)
-        if bad.any():
+        if not _all_finite(v):
+            bad = ~np.isfinite(v)
             i = int(np.flatnonzero(bad)[0])
             raise RecordError(
                 f"{where(src, channel=name)}expected finite values, got {int(bad.sum())} "
                 f"non-finite value(s), first at sample {i} ({v[i]})"
             )
+
+
+def _all_finite(x: np.ndarray) -> bool:
+    """Whether every value is finite, block by block (no mask as long as the record)."""
+    return all(bool(np.isfinite(x[sl]).all()) for sl in _blocks(x.size))
 
 
 def merge_channels(records: Iterable[Channels], *, source: str | None = None) -> Channels:

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import RecordError
-from .harmonics import fit_harmonics
+from .harmonics import _blocks, fit_harmonics
 
 __all__ = ["Flag", "check_live", "clipping_flag", "record_flags", "scale_outliers", "trend_outliers",
            "equivalent_damping", "Z_LIMIT"]
@@ -139,11 +139,18 @@ def clipping_flag(x, channel: str) -> Flag | None:
     n = x.size
     worst = None
     for side, sign in (("maximum", 1.0), ("minimum", -1.0)):
-        y = sign * x
-        top = y.max()
-        at_top = int(np.count_nonzero(y == top))
-        below = y[y < top]
-        nxt = int(np.count_nonzero(below == below.max())) if below.size else 0
+        top = sign * (x.max() if sign > 0 else x.min())  # max(-x) = -min(x)
+        at_top, level, nxt = 0, None, 0
+        for sl in _blocks(n):  # block by block: no copy of the record
+            y = sign * x[sl]
+            at_top += int(np.count_nonzero(y == top))
+            below = y[y < top]
+            if below.size:
+                m = below.max()
+                if level is None or m > level:
+                    level, nxt = m, int(np.count_nonzero(below == m))
+                elif m == level:
+                    nxt += int(np.count_nonzero(below == m))
         frac = at_top / n
         if at_top >= 5 and frac >= CLIP_FRACTION and at_top >= CLIP_RATIO * max(nxt, 1):
             if worst is None or frac > worst[1]:
@@ -182,18 +189,41 @@ def _dead_flag(series, sigma, x, n, channel) -> Flag | None:
     return None
 
 
-def _spike_flag(r, x, channel) -> Flag | None:
-    """``spikes`` when samples lie far off the fitted harmonics (``r``: the residual; robust scale)."""
-    scale = _robust_sigma(r)
-    peak = float(np.max(np.abs(x)))
+def _residual_blocks(t, x, series):
+    """Iterate ``(slice, x - series(t))`` block by block (the residual of a long record is never
+    held whole)."""
+    for sl in _blocks(x.size):
+        yield sl, x[sl] - series(t[sl])
+
+
+def _residual_sigma(t, x, series, work) -> float:
+    """:func:`_robust_sigma` of the residual ``x - series(t)``, in the buffer ``work`` (overwritten)."""
+    r = work[: x.size]
+    for sl, rb in _residual_blocks(t, x, series):
+        r[sl] = rb
+    med = np.median(r, overwrite_input=True)  # the same values as the whole residual's, reordered
+    np.subtract(r, med, out=r)
+    np.abs(r, out=r)
+    return 1.4826 * float(np.median(r, overwrite_input=True))
+
+
+def _spike_flag(t, x, series, scale, channel) -> Flag | None:
+    """``spikes`` when samples lie far off the fitted harmonics (``scale``: robust scale of the
+    residual ``x - series(t)``, which is formed again block by block)."""
+    peak = max(float(np.max(x)), -float(np.min(x)))
     limit = max(SPIKE_Z * scale, 1e-6 * peak)
-    bad = np.abs(r) > limit
-    if not bad.any():
+    count, i, worst, value = 0, -1, -1.0, 0.0
+    for sl, r in _residual_blocks(t, x, series):
+        a = np.abs(r)
+        count += int(np.count_nonzero(a > limit))
+        j = int(np.argmax(a))
+        if a[j] > worst:
+            i, worst, value = sl.start + j, float(a[j]), float(r[j])
+    if not count:
         return None
-    i = int(np.argmax(np.abs(r)))
-    return Flag("spikes", f"channel {channel!r}: {int(bad.sum())} sample(s) lie more than {SPIKE_Z:g} robust standard "
-                          f"deviations off the fitted harmonics, the worst {r[i]:.4g} at sample {i}; spikes or "
-                          f"dropouts", {"channel": channel, "n_samples": int(bad.sum()), "worst": float(r[i]),
+    return Flag("spikes", f"channel {channel!r}: {count} sample(s) lie more than {SPIKE_Z:g} robust standard "
+                          f"deviations off the fitted harmonics, the worst {value:.4g} at sample {i}; spikes or "
+                          f"dropouts", {"channel": channel, "n_samples": count, "worst": value,
                                         "worst_sample": i, "robust_sigma": scale})
 
 
@@ -239,15 +269,19 @@ def record_flags(signals, *, channels=("force", "accel"), n_harmonics=None) -> t
         f = clipping_flag(x, ch)
         if f is not None:
             flags.append(f)
-    resid = {ch: x - series(t) for ch, series, x in ((channels[0], fQ, Q), (channels[1], acc, a))}
-    for ch, series, x in ((channels[0], fQ, Q), (channels[1], acc, a)):
-        f = _dead_flag(series, _robust_sigma(resid[ch]), x, n, ch)
+    fitted = ((channels[0], fQ, Q), (channels[1], acc, a))
+    work = np.empty(n)  # one residual at a time, the only array as long as the record
+    sigma = {}
+    for ch, series, x in fitted:
+        sigma[ch] = _residual_sigma(t, x, series, work)
+        f = _dead_flag(series, sigma[ch], x, n, ch)
         if f is not None:
             flags.append(f)
+    del work
     if any(f.name == "dead_channel" for f in flags):
         return tuple(flags)  # the other checks compare signals that are not there
-    for ch, x in zip(channels, (Q, a)):
-        f = _spike_flag(resid[ch], x, ch)
+    for ch, series, x in fitted:
+        f = _spike_flag(t, x, series, sigma[ch], ch)
         if f is not None:
             flags.append(f)
 

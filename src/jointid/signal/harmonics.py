@@ -116,11 +116,18 @@ def check_signal(x, name, n=None) -> np.ndarray:
         raise RecordError(f"channel {name!r}: expected a 1-D signal, got shape {x.shape}")
     if n is not None and x.size != n:
         raise RecordError(f"channel {name!r}: has {x.size} samples but the time column has {n}")
-    bad = ~np.isfinite(x)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise RecordError(f"channel {name!r}: non-finite value {x[i]!r} at sample {i} ({int(bad.sum())} in all)")
+    for sl in _blocks(x.size):  # block by block: no mask as long as the record
+        if not np.isfinite(x[sl]).all():
+            bad = ~np.isfinite(x)
+            i = int(np.flatnonzero(bad)[0])
+            raise RecordError(f"channel {name!r}: non-finite value {x[i]!r} at sample {i} ({int(bad.sum())} in all)")
     return x
+
+
+def _varies(x) -> bool:
+    """Whether ``x`` differs from its mean anywhere (``np.any(x - x.mean())``, block by block)."""
+    mean = x.mean()
+    return any(bool((x[sl] != mean).any()) for sl in _blocks(x.size))
 
 
 def _basis(tau, omega, n_harmonics):
@@ -273,14 +280,15 @@ def fit_harmonics(t, x, omega, n_harmonics, *, channel="accel", t0=None) -> tupl
         if dt is not None:  # the series starts at the first sample: tau = n dt
             return _streaming_fit(None, x, omega, n_harmonics, float(t[0]), channel, dt)
     t0 = float(t[0]) if t0 is None else float(t0)
-    return _streaming_fit(t - t0, x, omega, n_harmonics, t0, channel)
+    return _streaming_fit(t, x, omega, n_harmonics, t0, channel, origin=t0)
 
 
 #: Samples per block when streaming through long records (keeps the work in cache).
 BLOCK = 32768
 
 
-def _blocks(n, size=BLOCK):
+def _blocks(n, size=None):
+    size = BLOCK if size is None else size  # read at the call: a test may shrink the blocks
     for start in range(0, n, size):
         yield slice(start, min(n, start + size))
 
@@ -438,13 +446,15 @@ def _uniform_gn(x, omega, dt, n_harmonics, rows=TABLE_ROWS):
     return step, stderr, coef, fraction
 
 
-def _streaming_fit(tau, x, omega, n_harmonics, t0, channel, dt=None):
+def _streaming_fit(tau, x, omega, n_harmonics, t0, channel, dt=None, origin=None):
     """Harmonic least squares accumulated block by block (normal equations).
 
     The columns are nearly orthogonal sinusoids, so the Gram matrix is well conditioned
     for any record of two periods or more.  With ``dt`` (a uniform grid, ``tau = n dt``)
     the sums come from one matrix product against a rotated table
-    (:func:`_uniform_moments`); otherwise the basis is evaluated at every ``tau``.
+    (:func:`_uniform_moments`); otherwise the basis is evaluated at every ``tau``, or at
+    ``tau - origin`` block by block when ``origin`` is given (``tau`` then holds the time
+    stamps themselves: no shifted copy of a long record).
     """
     if dt is not None:
         G, r = _uniform_moments(x, omega * dt, n_harmonics)
@@ -455,7 +465,7 @@ def _streaming_fit(tau, x, omega, n_harmonics, t0, channel, dt=None):
         r = np.zeros(m)
         xx = 0.0
         for sl in _blocks(tau.size):
-            A = _basis(tau[sl], omega, n_harmonics)
+            A = _basis(tau[sl] if origin is None else tau[sl] - origin, omega, n_harmonics)
             G += A.T @ A
             r += A.T @ x[sl]
             xx += float(x[sl] @ x[sl])
@@ -666,10 +676,40 @@ class StateSignals:
     def n_periods(self) -> float:
         return (self.t[-1] - self.t[0] + (self.t[1] - self.t[0])) * self.frequency_hz
 
-    def states(self):
-        """``(q, q', q''_filtered)`` at the sample times."""
-        parts = list(self.blocks(size=self.t.size))
-        return parts[0][1:]
+    def states(self, stop=None):
+        """``(q, q', q''_filtered)`` at the sample times (the first ``stop`` samples when given)."""
+        n = self.t.size if stop is None else int(min(max(stop, 0), self.t.size))
+        out = np.empty((3, n))
+        for sl, q, v, a in self.exact_blocks(stop=n):
+            out[0, sl], out[1, sl], out[2, sl] = q, v, a
+        return out[0], out[1], out[2]
+
+    def exact_blocks(self, size=None, stop=None):
+        """Iterate ``(slice, q, q', q''_filtered)`` like :meth:`blocks`, with every sinusoid
+        evaluated at its sample (no rotation of a table): the values of one evaluation over
+        the whole record, in blocks of ``size`` samples (memory of a block, not of the record)."""
+        n = self.t.size if stop is None else int(min(max(stop, 0), self.t.size))
+        size = BLOCK if size is None else int(size)
+        C = self.series_coefficients()
+        H = self.acceleration.n_harmonics
+        if self._uniform_dt is None:
+            for sl in _blocks(n, size):
+                S = C.T @ _basis(self.t[sl] - self.acceleration.t0, self.omega, H).T
+                yield sl, S[0], S[1], S[2]
+            return
+        omega_dt = self.omega * self._uniform_dt
+        phase0 = self.omega * (float(self.t[0]) - self.acceleration.t0)
+        CM = _rotations(np.array([phase0]), H)[0] @ C
+        k = np.arange(1, H + 1)
+        T = np.empty((min(size, n), n_coefficients(H)))
+        for sl in _blocks(n, size):
+            Tb = T[: sl.stop - sl.start]
+            kt = np.multiply.outer(omega_dt * np.arange(sl.start, sl.stop, dtype=float), k)  # as in _sinusoids
+            Tb[:, 0] = 1.0
+            Tb[:, 1::2] = np.cos(kt)
+            Tb[:, 2::2] = np.sin(kt)
+            S = CM.T @ Tb.T
+            yield sl, S[0], S[1], S[2]
 
     @functools.cached_property
     def _uniform_dt(self):
@@ -854,7 +894,7 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
     _, dt_uniform = _time_step(t, tname)
     force = check_signal(force, fname, t.size)
     accel = check_signal(accel, aname, t.size)
-    if not np.any(force - force.mean()):
+    if not _varies(force):
         raise RecordError(f"channel {fname!r}: the force is zero (or constant); the record carries no excitation")
     given = frequency_hz is not None
     dt = (t[-1] - t[0]) / (t.size - 1)
@@ -888,8 +928,8 @@ def steady_state_signals(t, force, accel, *, frequency_hz=None, n_harmonics=5, c
             stacklevel=3,
         )
         n_harmonics = below
-    tau = None if dt_uniform is not None else t - t[0]
-    series, resid = _streaming_fit(tau, accel, omega, n_harmonics, float(t[0]), aname, dt_uniform)
+    tau, origin = (None, None) if dt_uniform is not None else (t, float(t[0]))
+    series, resid = _streaming_fit(tau, accel, omega, n_harmonics, float(t[0]), aname, dt_uniform, origin=origin)
     out = StateSignals(t, force, accel, series, frequency_hz, given, resid)
     out.__dict__["_uniform_dt"] = dt_uniform  # seeds the cached property (already computed)
     return out
