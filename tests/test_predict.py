@@ -61,7 +61,10 @@ def _handmade(folder, scale=0.8):
                     "covariance": np.diag(np.square(se)).tolist(), "q_max_range": [2e-4, 0.02],
                     "frequency_hz_range": [24.7, 28.3], "f1_hz": OMEGA1 / (2 * np.pi)}],
         "groups": [{"preload": "p1", "force_level": F, "pooled": {}} for F in FITTED],
-        "reprediction": {"groups": [{"preload": "p1", "force_level": F, "forcing": scale * F} for F in FITTED]},
+        "reprediction": {"groups": [{"preload": "p1", "force_level": F, "forcing": scale * F,
+                                     "quantity": "modal acceleration / modal force",
+                                     "measured_frequency_hz": [26.0, 27.0], "measured": [100.0, 300.0]}
+                                    for F in FITTED]},
     }
     (folder / "results.json").write_text(json.dumps(d))
     return folder
@@ -158,6 +161,10 @@ def test_modal_force_scaling_of_the_reprediction_and_the_located_peak(handmade):
     assert p.modal_force == pytest.approx(1.6, rel=1e-12)
     assert not p.extrapolated and p.has_peak and not p.amplitude_beyond_fitted
     assert math.isnan(p.peak_q_max_stderr)
+    # the measured dwells of this fitted level, as fundamental displacement amplitudes
+    f, A = p.measured
+    assert A == pytest.approx(np.array([100.0, 300.0]) * 1.6 / (2 * np.pi * np.array([26.0, 27.0])) ** 2, rel=1e-12)
+    assert p.summary()["measured_dwells"]["frequency_hz"] == [26.0, 27.0]
     f_true, q_true = _true_peak(1.6, p.peak_frequency_hz - 0.5)
     assert p.peak_frequency_hz == pytest.approx(f_true, rel=2e-6)
     assert p.peak_q_max == pytest.approx(q_true, rel=2e-6)
@@ -171,6 +178,7 @@ def test_cli_writes_the_set_and_says_extrapolated(handmade, tmp_path, capsys):
     assert "EXTRAPOLATED" in text and "F = 1.5" in text and "95 %" in text
     d = json.loads((out / "results.json").read_text())
     assert [e["extrapolated"] for e in d["predictions"]] == [False, True]
+    assert [e["measured_dwells"] is None for e in d["predictions"]] == [True, True]  # neither level was measured
     assert all(e["peak_frequency_hz_ci95"] and e["peak_q_max_stderr"] > 0 for e in d["predictions"])
     assert (out / "report.html").is_file() and "EXTRAPOLATED" in (out / "report.txt").read_text()
     assert (out / "figures" / "predict_p1.png").is_file()

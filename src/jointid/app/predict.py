@@ -36,6 +36,11 @@ Flags
     ``q_max_range`` (its amplitude laws are extrapolated); a damping coefficient that is
     zero or negative at the peak amplitude is a warning.  A prediction that fails (no
     steady state) is reported with its error and the others go on.
+
+Measured dwells
+    At a force level the model was fitted on, the measured dwells of that level (from the
+    re-prediction in the results) are carried along as fundamental amplitudes
+    ``|q''_1| / omega^2`` and drawn over the curve.
 """
 
 from __future__ import annotations
@@ -44,7 +49,7 @@ import html
 import json
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +57,7 @@ import numpy as np
 from ..errors import (JointidError, JointidWarning, ManifestError, RecordError, RecordFileNotFoundError)
 
 __all__ = ["Prediction", "PredictResult", "load_results", "parse_force_levels", "usable_models", "model_of_entry",
-           "force_scaling", "fitted_force_levels", "predict_peak", "predict_level", "predict_from_results",
+           "force_scaling", "fitted_force_levels", "measured_dwells", "predict_peak", "predict_level", "predict_from_results",
            "write_predictions"]
 
 #: Largest continuation step (scaled space of :func:`jointid.simulate.hbm.frequency_response`):
@@ -234,6 +239,23 @@ def force_scaling(results, preload) -> dict:
             "source": "re-prediction of the measured levels (mean fundamental of the modal force / force level)"}
 
 
+def measured_dwells(results, preload, force_level):
+    """``(frequency_hz, amplitude)`` of the measured dwells of a fitted level (identify's
+    re-prediction holds them as ``|q''_1| / |Q_1|``; the amplitude is ``|q''_1| / omega^2`` with
+    the group's forcing), or ``None``."""
+    for g in ((results.get("reprediction") or {}).get("groups") or []):
+        if not (isinstance(g, dict) and g.get("preload") == preload and _numeric(g.get("force_level"))
+                and abs(g["force_level"] - force_level) <= 1e-9 * abs(force_level)):
+            continue
+        f, H, Q = g.get("measured_frequency_hz"), g.get("measured"), g.get("forcing")
+        if (g.get("quantity") != "modal acceleration / modal force" or not _numeric(Q) or not isinstance(f, list)
+                or not isinstance(H, list) or len(f) != len(H) or not all(map(_numeric, f + H))):
+            return None
+        f = np.asarray(f, float)
+        return f, np.asarray(H, float) * Q / (2 * np.pi * f) ** 2
+    return None
+
+
 # --- the harmonic balance and the peak -------------------------------------------------------------
 
 def _curve(model, Q, span_hz, n_harmonics, stability):
@@ -344,6 +366,7 @@ class Prediction:
     notes: tuple = ()
     error: str | None = None
     model: object = field(default=None, repr=False)
+    measured: tuple | None = None  # (frequency_hz, fundamental amplitude) of the measured dwells at this level
 
     def __post_init__(self):
         for name in ("frequency_hz", "q_max", "stable"):
@@ -384,6 +407,10 @@ class Prediction:
                       "stable": [bool(s) for s in self.stable]},
             "warnings": list(self.notes),
             "error": self.error,
+            "measured_dwells": None if self.measured is None else {
+                "frequency_hz": [float(v) for v in self.measured[0]],
+                "amplitude": [float(v) for v in self.measured[1]],
+                "quantity": "fundamental of q at the dwell (|q''_1| / omega^2), modal"},
         }
 
     def report(self) -> str:
@@ -683,6 +710,9 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
         for F in levels:
             pred = predict_level(entry, F, scale=scaling[p]["modal_force_per_unit"], fitted_levels=fitted,
                                  frequency_range=frequency_range, n_harmonics=n_harmonics, uncertainty=uncertainty)
+            dwells = measured_dwells(results, p, F)
+            if dwells is not None:
+                pred = replace(pred, measured=dwells)
             preds.append(pred)
             if progress is not None:
                 progress(pred.report().splitlines()[0])

@@ -2,7 +2,8 @@
 
 :func:`plot_predictions` draws, for the predictions of one preload, ``q_max`` against
 frequency of each force level (solid where stable, dashed where unstable), the folds and
-the located peak with its 95 % interval; an extrapolated level is marked in the legend.
+the located peak with its 95 % interval, and the measured dwells of a fitted level (their
+fundamental amplitude); an extrapolated level is marked in the legend.
 :func:`prediction_rows` gives the table of peaks.  Nothing is computed here.
 """
 
@@ -56,6 +57,9 @@ def plot_predictions(predictions, ax=None, *, title=None):
         for fold in pred.folds_hz:
             k = int(np.argmin(np.abs(f - fold)))
             ax.plot([f[k]], [q[k]], marker="o", ms=3, mfc="none", color=col)
+        if pred.measured is not None:
+            ax.plot(pred.measured[0], pred.measured[1], ls="none", marker="o", ms=3.5, mfc="none", color=col,
+                    label=f"F = {pred.force_level:g} measured (fundamental)")
         if pred.has_peak:
             xerr = yerr = None
             if np.isfinite(pred.peak_frequency_hz_stderr):
