@@ -99,6 +99,7 @@ class CampaignResult:
     adequacy_errors: dict = field(default_factory=dict)
     selections: dict = field(default_factory=dict)  # SelectionResult per preload (terms="auto")
     selection_errors: dict = field(default_factory=dict)
+    fit_checks: tuple = ()  # goodness of fit of the campaign-level regressions (jointid.app.fit_checks)
 
     @property
     def failed(self):
@@ -114,9 +115,9 @@ class CampaignResult:
     def misfits(self) -> list:
         """Campaign-level regressions whose model does not fit the data to their errors
         (:mod:`jointid.app.fit_checks`; ``results.json`` key ``fit_checks``)."""
-        from .fit_checks import fit_checks, misfits
+        from .fit_checks import misfits
 
-        return misfits(fit_checks(self))
+        return misfits(self.fit_checks)
 
     def group(self, preload, force_level) -> GroupResult:
         for g in self.groups:
@@ -161,7 +162,7 @@ class CampaignResult:
             "adequacy": [self.adequacy[p].summary() if self.adequacy.get(p) is not None
                          else {"preload": p, "adequate": None, "error": self.adequacy_errors.get(p)}
                          for p in sorted(set(self.adequacy) | set(self.adequacy_errors), key=group_key)],
-            "fit_checks": _fit_checks(self),
+            "fit_checks": list(self.fit_checks),
             "selection": [self.selections[p].summary() if self.selections.get(p) is not None
                           else {"preload": p, "selected": None, "error": self.selection_errors.get(p)}
                           for p in sorted(set(self.selections) | set(self.selection_errors), key=group_key)],
@@ -181,12 +182,6 @@ class CampaignResult:
         from ..report.notebook import result_html
 
         return result_html(self)
-
-
-def _fit_checks(result) -> list:
-    from .fit_checks import fit_checks
-
-    return fit_checks(result)
 
 
 def group_key(value):

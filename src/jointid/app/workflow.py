@@ -189,6 +189,8 @@ def _identify_stepped_sine(campaign, settings, selections=None, selection_errors
     for a in adequacy.values():
         if a is not None and a.adequate is False:
             warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=stacklevel)
+    from .fit_checks import fit_checks
+
     repredictions, loops = (), ()
     if settings.repredict:
         from .reprediction import loop_errors, repredict_campaign
@@ -199,5 +201,5 @@ def _identify_stepped_sine(campaign, settings, selections=None, selection_errors
         repredictions=repredictions, loops=loops, structures=fit.structures, channel_delay=delay,
         channel_delay_error=delay_error, broadband=broadband, models=fit.models, model_errors=fit.model_errors,
         backbones=backbones, adequacy=adequacy, adequacy_errors=adequacy_errors, selections=selections or {},
-        selection_errors=selection_errors or {},
+        selection_errors=selection_errors or {}, fit_checks=tuple(fit_checks(fit)),
     )
