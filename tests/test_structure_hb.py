@@ -26,7 +26,7 @@ def chain_structure(force_scale=1.0):
     K[3, 3] += 1.5e4
     for i, kk in enumerate(k[1:]):
         K[i:i + 2, i:i + 2] += kk * np.array([[1, -1], [-1, 1]])
-    M = np.diag([1.0, 0.8, 0.6, 1.2])
+    M = np.diag([1.5, 0.4, 0.3, 2.0])  # modes at 14.1, 23.7, 49.7, 89.7 Hz: no 1:3 or 1:5 internal resonance near f1
     lin = LinearModel(M, K, ["x1", "x2", "x3", "x4"], zeta=0.02)
     joints = [
         JointElement("bolt", "x2", "x3", Jenkins(kt=kt, Fs=8.0), k_model=kt),
@@ -117,7 +117,7 @@ def test_condensed_hb_matches_linear_receptance_and_converges():
 def test_continuation_passes_folds_and_solve_agrees():
     st = chain_structure()
     f1 = st.modal.frequencies_hz[0]
-    curve = st.frequency_response(0.8 * f1, 1.6 * f1, 5.0, 7)
+    curve = st.frequency_response(0.8 * f1, 1.6 * f1, 2.0, 7)
     assert len(curve.folds) == 2  # the hardening stop bends the resonance right: two turning points
     f = curve.frequency_hz
     i1, i2 = curve.folds
@@ -150,21 +150,24 @@ def test_rigid_body_modes_and_bad_input():
 
 @pytest.mark.slow
 def test_hb_matches_long_time_integration_on_ten_frequencies_and_a_fold():
+    """Ten points of the continued curve off the middle (unstable) branch and one two steps before the
+    upper fold: the first harmonic of a 30-period integration started on the orbit equals HB to 1e-4."""
     st = chain_structure()
     f1 = st.modal.frequencies_hz[0]
-    curve = st.frequency_response(0.8 * f1, 1.6 * f1, 5.0, 15, n_time=256)
-    i1 = curve.folds[0]
-    picks = list(np.linspace(0, len(curve) - 1, 10).astype(int))
-    picks.append(max(i1 - 2, 0))  # next to the upper fold, on the stable upper branch
+    curve = st.frequency_response(0.8 * f1, 1.6 * f1, 2.0, 15, n_time=256)
+    i1, i2 = curve.folds
+    stable = [i for i in range(len(curve)) if i < i1 or i > i2]
+    picks = [stable[k] for k in np.linspace(0, len(stable) - 1, 10).astype(int)]
+    picks.append(i1 - 2)  # next to the upper fold, on the stable upper branch
     errs = []
     for i in picks:
         p = curve.points[i]
         X_hb = st.modal.shapes @ to_complex(p.modal)[:, 1]
-        X_ti = integrate_fundamental(st, p)
+        X_ti = integrate_fundamental(st, p, n_periods=30)
         errs.append(np.max(np.abs(X_ti - X_hb)) / np.max(np.abs(X_hb)))
+    print("frequencies / f1:", np.round(curve.frequency_hz[picks] / f1, 4))
     print("relative fundamental differences:", np.array(errs))
     assert max(errs) < 1e-4
-
 
 def test_engine_with_a_joints_law_matches_the_rig_on_its_beam():
     """The rig's reduced beam (4 modes, Iwan joint in rotation): the engine with the joints package's
@@ -186,3 +189,24 @@ def test_engine_with_a_joints_law_matches_the_rig_on_its_beam():
         scale = np.abs(ref.modal).max()
         assert np.max(np.abs(got.modal - ref.modal)) < 1e-9 * scale
         assert np.max(np.abs(got.joint - ref.joint)) < 1e-9 * np.abs(ref.joint).max()
+
+
+def test_rate_dependent_law_is_a_viscous_damper_and_continues():
+    """A viscous joint (polynomial term q') to the ground: the response is the linear one with the damper's
+    modal damping added (the velocity samples and df/dv of the AFT, and d/domega in the continuation)."""
+    om = 2 * np.pi * np.array([10.0, 35.0])
+    psi = np.array([[0.8, -0.5]])
+    pf = np.array([1.0, 0.4])
+    c = 3.0
+    e = CondensedHB(om, [0.01, 0.01], psi, pf, [PolynomialLaw({"q'": c})])
+    w = 2 * np.pi * 9.5
+    p = e.solve(w, [0.0, 0.0, 2.0], 3)
+    C = np.diag(2 * 0.01 * om) + c * psi.T @ psi
+    X = np.linalg.solve(np.diag(om**2) - w**2 * np.eye(2) + 1j * w * C, pf * 2.0 * (-1j))
+    assert np.allclose(to_complex(p.modal)[:, 1], X, rtol=1e-10, atol=1e-12 * np.abs(X).max())
+    curve = e.continuation(2 * np.pi * 8, 2 * np.pi * 12, [0.0, 0.0, 2.0], 3)
+    q = curve.points[len(curve) // 2]
+    C = np.diag(2 * 0.01 * om) + c * psi.T @ psi
+    Xq = np.linalg.solve(np.diag(om**2) - q.omega**2 * np.eye(2) + 1j * q.omega * C, pf * 2.0 * (-1j))
+    assert np.allclose(to_complex(q.modal)[:, 1], Xq, rtol=1e-8, atol=1e-10 * np.abs(Xq).max())
+    assert curve.folds == ()
