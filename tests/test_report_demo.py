@@ -10,6 +10,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from html_page import parse_page
 from matplotlib.ticker import FixedFormatter
 
 from jointid.app.demo import run_demo
@@ -28,23 +29,26 @@ def demo(tmp_path_factory):
 
 def test_demo_report_opens_with_the_summary(demo):
     page = (demo.out_dir / "report.html").read_text(encoding="utf-8")
-    first = page.index("<table")
-    assert first < page.index("<img") and first < page.index(">Appendix: acceptance checks and timings</h2>")
-    head = page[first:page.index("</table>", first)]
-    assert "Identified model per preload" in head
+    doc = parse_page(page)
+    first, img = doc.position("table"), doc.position("img")
+    assert first < img and first < doc.heading("Appendix: acceptance checks and timings")
+    head = doc.tables[0].text()
+    assert "Identified model per preload" in doc.tables[0].caption
     for text in ("120", "540", "f1", "omega1", "rad/s", "Hz", "k3", "N/m³", "c0", "N s/m", "95 % interval"):
         assert text in head, text
     assert not re.search(r"\d\.\d{9,}", head)
-    assert "Table 4" in page[first:page.index("<img")] and "Table 5" in page[first:page.index("<img")]
+    before_figures = " ".join(v.text() if k == "table" else v for k, v in doc.outline[first:img])
+    assert "Table 4" in before_figures and "Table 5" in before_figures
     # the acceptance checks and timings are in the appendix, after every figure
-    checks = page.index("acceptance checks</caption>")
-    assert checks > page.rindex("<img") and page.index("run time per stage") > page.rindex("<img")
+    last_img = doc.last_position("img")
+    assert doc.position("table", lambda t: t.caption == "acceptance checks") > last_img
+    assert doc.position("table", lambda t: t.caption.startswith("run time per stage")) > last_img
 
 
 def test_demo_report_shows_version_date_and_the_run_id_of_its_results(demo):
     page = (demo.out_dir / "report.html").read_text(encoding="utf-8")
     run_id = json.loads((demo.out_dir / "results.json").read_text())["run_id"]
-    meta = re.search(r"<p class='meta'>(.*?)</p>", page).group(1)
+    meta = parse_page(page).meta
     assert run_id and run_id in meta and "jointid " in meta and "date " in meta
 
 
@@ -64,5 +68,6 @@ def test_demo_report_in_headless_chromium_has_the_summary_first(demo, tmp_path):
     cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
            f"--user-data-dir={tmp_path / 'p'}", "--dump-dom", url]
     dom = subprocess.run(cmd, check=True, timeout=120, capture_output=True, text=True).stdout
-    first = dom.index("<table")
-    assert first < dom.index("<img") and "Identified model per preload" in dom[first:first + 300]
+    doc = parse_page(dom)
+    assert doc.position("table") < doc.position("img")
+    assert doc.tables[0].caption.startswith("Identified model per preload")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from html_page import parse_page, parse_tables
 
 from jointid.report.formatting import format_ci, format_pm, format_value, html_table, label_with_unit, unit_of
 from jointid.report.summary import (
@@ -69,8 +70,12 @@ def test_units_of_the_paper_tables():
 
 def test_html_table_escapes_and_formats():
     page = html_table([{"a": "<b>", "b": 0.123456789}], caption="x & y")
-    assert "&lt;b&gt;" in page and "0.1235" in page and "x &amp; y" in page
+    assert "<b>" not in page  # the text is escaped, not markup
+    (table,) = parse_tables(page)
+    assert table.caption == "x & y" and table.header == ["a", "b"] and table.rows == [["<b>", "0.1235"]]
+    assert table.classes == {(0, 0): "text"}  # text cells left-aligned, numbers not
     assert html_table([]) == ""
+    assert parse_page(html_table([], caption="t", empty="no rows")).outline == [("p", "t: no rows")]
 
 
 def test_messages_grouped_by_kind_with_counts():

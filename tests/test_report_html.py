@@ -12,6 +12,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from html_page import parse_page
 
 from jointid import identify_campaign
 from jointid.app.synthesis import load_simulation_config, simulate_campaign
@@ -45,28 +46,30 @@ def written(tmp_path_factory):
 def test_summary_table_comes_first(written):
     paths = written[1]
     page = paths["html"].read_text(encoding="utf-8")
-    first_table = page.index("<table")
-    assert first_table < page.index("<img") and first_table < page.index(">Appendix: settings and checks</h2>")
-    caption = re.search(r"<table><caption>([^<]*)</caption>", page[first_table:]).group(1)
-    assert caption.startswith("Identified model per preload")
-    head = page[first_table:page.index("</table>", first_table)]
+    doc = parse_page(page)
+    first_table = doc.position("table")
+    assert first_table < doc.position("img") and first_table < doc.heading("Appendix: settings and checks")
+    first = doc.tables[0]
+    assert first.caption.startswith("Identified model per preload")
+    head = first.text()
     for text in ("f1", "omega1", "rad/s", "Hz", "k3", "N/m³", "c0", "N s/m", "c2", "N s/m³", "95 % interval"):
         assert text in head, text
     # values carry no more digits than the standard error supports
     assert not re.search(r"\d\.\d{9,}", head)
     # the paper's Table 5 follows, with the band average named as such
-    assert "Table 5" in page and "band average" in page
+    assert doc.table("The paper's Table 5") and "band average" in page
 
 
 def test_version_date_and_run_id_under_the_title(written):
     paths = written[1]
     page = paths["html"].read_text(encoding="utf-8")
     run_id = json.loads(paths["results"].read_text())["run_id"]
-    meta = re.search(r"<p class='meta'>(.*?)</p>", page).group(1)
+    doc = parse_page(page)
+    meta = doc.meta
     from jointid import __version__
 
     assert f"jointid {__version__}" in meta and run_id in meta and re.search(r"date \d{4}-\d\d-\d\d", meta)
-    assert page.index("class='meta'") < page.index("<table")
+    assert doc.position("p", lambda text: text == meta) < doc.position("table")
 
 
 def _categorical(axis):
@@ -95,11 +98,10 @@ def test_identified_vs_measured_carries_an_error_measure(written):
             for ax in fig.axes:
                 labels = [t.get_text() for t in ax.get_legend().get_texts()]
                 assert any("rms difference" in t for t in labels), labels
-    page = paths["html"].read_text(encoding="utf-8")
-    table = page[page.index("re-prediction errors"):]
-    table = table[:table.index("</table>")]
-    assert "peak frequency error" in table and "loop rms difference" in table
-    assert re.search(r"<td[^>]*>\d+\.\d %</td>", table)  # a loop error for each group
+    table = parse_page(paths["html"].read_text(encoding="utf-8")).table("re-prediction errors")
+    assert any(h.startswith("peak frequency error") for h in table.header)
+    loops = table.column("loop rms difference (filtered) [%]")
+    assert any(re.fullmatch(r"\d+\.\d %", v) for v in loops), loops  # a loop error in the table
 
 
 def test_warnings_listed_and_checks_in_an_appendix(written):
@@ -119,8 +121,9 @@ def test_report_renders_in_headless_chromium_summary_first(written, tmp_path):
             "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'p'}"]
     dom = subprocess.run(base + ["--dump-dom", url], check=True, timeout=120, capture_output=True, text=True).stdout
     # the browser's document: the identified model is the first table, before any figure
-    i_table, i_img = dom.index("<table"), dom.index("<img")
-    assert i_table < i_img and "Identified model per preload" in dom[i_table:i_table + 300]
+    doc = parse_page(dom)
+    assert doc.position("table") < doc.position("img")
+    assert doc.tables[0].caption.startswith("Identified model per preload")
     shot = tmp_path / "report.png"
     subprocess.run(base + ["--window-size=1200,1600", f"--screenshot={shot}", url], check=True, timeout=120,
                    capture_output=True)

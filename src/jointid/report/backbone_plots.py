@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .formatting import slug, tex_safe
 from .identify_plots import new_axes
 
 __all__ = ["plot_backbone", "plot_backbones", "joint_law_table", "backbone_figures", "backbone_report_lines"]
@@ -85,8 +86,6 @@ def plot_backbones(backbones, ax=None, title=None, units="Hz", amplitude_unit="m
 
 
 def _tex_safe(text, max_length=80):
-    from .output import tex_safe
-
     return tex_safe(text, max_length)
 
 
@@ -100,8 +99,6 @@ def joint_law_table(fits) -> str:
 
 def backbone_figures(result) -> list:
     """``(file name, caption, figure)`` of each preload's backbones in a campaign result (none without them)."""
-    from .output import slug
-
     bb = getattr(result, "backbones", None)
     out = []
     for p in (bb.preloads if bb is not None else ()):

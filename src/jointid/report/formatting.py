@@ -1,4 +1,4 @@
-"""Numbers, units and small HTML tables shared by every report and result display.
+"""Numbers, units, labels and small HTML tables shared by every report and result display.
 
 One rule for every estimate shown to a reader: the standard error is printed with two
 significant digits and the value is rounded to the same decimal place
@@ -12,7 +12,9 @@ numerics' own text reports use as well.
 
 from __future__ import annotations
 
+import hashlib
 import html
+import re
 
 from ..rounding import (  # noqa: F401  (the one number formatter, re-exported here)
     FLOAT_DIGITS,
@@ -26,7 +28,8 @@ from ..rounding import (  # noqa: F401  (the one number formatter, re-exported h
 )
 
 __all__ = ["UNITS", "unit_of", "format_value", "format_pm", "format_ci", "format_estimate", "format_percent",
-           "html_table", "text_table", "label_with_unit", "quantity_units", "FLOAT_DIGITS", "NOT_AVAILABLE"]
+           "html_table", "text_table", "label_with_unit", "quantity_units", "FLOAT_DIGITS", "NOT_AVAILABLE",
+           "slug", "tex_safe", "SLUG_MAX"]
 
 #: Units of the identified quantities (the seed's Tables 2-5; modal coordinates with unit modal mass).
 UNITS = {
@@ -135,3 +138,40 @@ def text_table(rows, columns=None, headers=None) -> str:
     out = ["  ".join(str(h).rjust(w) for h, w in zip(headers, widths)), "  ".join("-" * w for w in widths)]
     out += ["  ".join(b[i].rjust(widths[i]) for i in range(len(widths))) for b in body]
     return "\n".join(out)
+
+
+#: Longest label kept in a file name (the rest is replaced by a hash of the whole label).
+SLUG_MAX = 40
+
+
+def slug(value) -> str:
+    """A file-name-safe form of a grouping value: ASCII letters, digits and ``.+-_``, at most
+    ``SLUG_MAX`` characters; a label that had to be changed gets a short hash of itself, so
+    two different labels never share a file name.
+
+    Examples
+    --------
+    >>> slug(120), slug("1.5 N"), slug("a/../b")[:6]
+    ('120', '1.5_N', 'a_.._b')
+    """
+    text = str(value)
+    safe = re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_.") or "none"
+    if len(safe) > SLUG_MAX or safe != text.replace(" ", "_"):
+        digest = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+        safe = f"{safe[:SLUG_MAX]}_{digest}"
+    return safe
+
+
+def tex_safe(value, max_length=60) -> str:
+    """A label for matplotlib text: ``$`` escaped so that it is not read as mathtext, and
+    shortened to ``max_length`` characters (a long label would squeeze the axes away).
+
+    Examples
+    --------
+    >>> print(tex_safe("$x^2$"))
+    \\$x^2\\$
+    """
+    text = str(value)
+    if len(text) > max_length:
+        text = text[: max_length - 3] + "..."
+    return text.replace("$", r"\$")

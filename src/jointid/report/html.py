@@ -1,7 +1,8 @@
 """Self-contained HTML reports: figures embedded as base64 PNG, every text escaped.
 
-A report is a list of sections; a section has a title, paragraphs, tables (lists of dicts)
-and matplotlib figures.  The page needs no network and no files beside it.
+A report is a list of sections; a section has a title, paragraphs, tables (lists of dicts,
+rendered by :func:`jointid.report.formatting.html_table`, the one HTML table builder) and
+matplotlib figures.  The page needs no network and no files beside it.
 """
 
 from __future__ import annotations
@@ -58,10 +59,6 @@ def figure_to_data_uri(fig, dpi=110) -> str:
     return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
-def _table(caption, rows, columns=None) -> str:
-    return html_table(rows, columns, caption=caption, css_class=None, empty="no rows")
-
-
 def page_meta(run_id=None) -> dict:
     """Version of jointid, the UTC date and time, and the run id shown at the top of a report."""
     import time
@@ -90,7 +87,7 @@ def render_html(title: str, sections, intro: str = "", meta=None) -> str:
     for i, s in enumerate(sections):
         parts.append(f"<h2 id='s{i}'>{html.escape(s.title)}</h2>")
         parts += [f"<p>{html.escape(p)}</p>" for p in s.paragraphs]
-        parts += [_table(c, rows, cols) for c, rows, cols in s.tables]
+        parts += [html_table(rows, cols, caption=c, css_class=None, empty="no rows") for c, rows, cols in s.tables]
         for caption, fig in s.figures:
             parts.append(f"<figure><img alt='{html.escape(caption, quote=True)}' src='{figure_to_data_uri(fig)}'>"
                          f"<figcaption>{html.escape(caption)}</figcaption></figure>")

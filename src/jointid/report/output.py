@@ -12,8 +12,6 @@ for file names (:func:`slug`), for matplotlib text (:func:`tex_safe`) and for sp
 
 from __future__ import annotations
 
-import hashlib
-import re
 from pathlib import Path
 
 import numpy as np
@@ -21,51 +19,13 @@ import numpy as np
 from ..identify.hysteresis import hysteresis_loop
 from ..io.outputset import MARKER, check_output_folder, new_run_id, output_set
 from ..io.results import atomic_write, write_csv, write_json
-from .formatting import format_ci, format_estimate, format_percent, format_pm, format_value, unit_of
+from .formatting import SLUG_MAX, format_value, slug, tex_safe  # noqa: F401  (slug, tex_safe re-exported)
 from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
-from .summary import Z95
-from .tables import group_rows, record_rows
+from .tables import _delay_text, _law_rows, _power_rows, _reprediction_table, group_rows, record_rows  # noqa: F401
 
 __all__ = ["write_results", "campaign_figures", "campaign_sections", "slug", "tex_safe", "check_output_folder",
            "output_set", "new_run_id", "MARKER"]
-
-#: Longest label kept in a file name (the rest is replaced by a hash of the whole label).
-SLUG_MAX = 40
-
-
-def slug(value) -> str:
-    """A file-name-safe form of a grouping value: ASCII letters, digits and ``.+-_``, at most
-    ``SLUG_MAX`` characters; a label that had to be changed gets a short hash of itself, so
-    two different labels never share a file name.
-
-    Examples
-    --------
-    >>> slug(120), slug("1.5 N"), slug("a/../b")[:6]
-    ('120', '1.5_N', 'a_.._b')
-    """
-    text = str(value)
-    safe = re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_.") or "none"
-    if len(safe) > SLUG_MAX or safe != text.replace(" ", "_"):
-        digest = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
-        safe = f"{safe[:SLUG_MAX]}_{digest}"
-    return safe
-
-
-def tex_safe(value, max_length=60) -> str:
-    """A label for matplotlib text: ``$`` escaped so that it is not read as mathtext, and
-    shortened to ``max_length`` characters (a long label would squeeze the axes away).
-
-    Examples
-    --------
-    >>> print(tex_safe("$x^2$"))
-    \\$x^2\\$
-    """
-    text = str(value)
-    if len(text) > max_length:
-        text = text[: max_length - 3] + "..."
-    return text.replace("$", r"\$")
-
 
 def write_results(result, out_dir, figures=True, html=True) -> dict:
     """Write ``results.json``, ``records.csv``, ``groups.csv``, ``damping_laws.csv``,
@@ -161,74 +121,6 @@ def misfit_text(summary) -> str:
     if not bad:
         return ""
     return "The model does not fit the data to their errors: " + "; ".join(c.get("message", "") for c in bad) + "."
-
-
-def _law_rows(summary) -> list:
-    from .summary import coefficient_note, run_units
-
-    units = run_units(summary)
-    rows = []
-    for d in summary.get("damping_law") or []:
-        coef, se = d.get("coefficients"), d.get("stderr") or []
-        if coef is None:
-            rows.append({"preload": str(d.get("preload")), "coefficient": "–", "value ± standard error": "not fitted",
-                         "95 % interval": "–", "unit": "", "note": "", "fit": str(d.get("error") or "")})
-            continue
-        fit = (f"chi²/dof {format_value(d.get('chi2_dof'), 3)}, p = {format_value(d.get('p_value'), 2)}, "
-               f"{d.get('n_records', '?')} records") if d.get("chi2_dof") is not None else ""
-        for k, v in enumerate(coef):
-            s_k = se[k] if k < len(se) else None
-            name = f"c{k}"
-            label, unit = units.get(name, (name, unit_of(name)))
-            ci = [v - Z95 * s_k, v + Z95 * s_k] if s_k is not None and np.isfinite(s_k) else None
-            rows.append({"preload": str(d.get("preload")), "coefficient": label,
-                         "value ± standard error": format_pm(v, s_k), "95 % interval": format_ci(ci, s_k),
-                         "unit": unit if k <= 2 or label == name else f"1/(m^{k} s)",
-                         "note": coefficient_note(name, v, s_k), "fit": fit if k == 0 else ""})
-    return rows
-
-
-def _power_rows(summary) -> list:
-    from .summary import run_units
-
-    gain_free = run_units(summary)["F"][1] == "V"
-    F = f"F [{run_units(summary)['F'][1]}]"
-    alpha_unit = "m²/s² / (m/s²)^n" if gain_free else "J/N^n"
-    rows = []
-    for d in summary.get("power_law") or []:
-        n_pts = len(d.get("force") or []) or None
-        dof = None if n_pts is None else n_pts - 2  # U = alpha F^n: two parameters
-        rows.append({"preload": str(d.get("preload")), F: format_value(d.get("force_level")),
-                     "records": n_pts if n_pts is not None else "–",
-                     f"alpha [{alpha_unit}]": format_value(d.get("alpha"), 4),
-                     "n ± standard error [1]": format_pm(d.get("n"), d.get("n_stderr"), dof=dof)
-                     if d.get("n") is not None else str(d.get("error") or "–"),
-                     "n within [2, 3]": d.get("within_2_3")})
-    return rows
-
-
-def _reprediction_table(summary) -> list:
-    from .summary import run_units
-
-    F = f"F [{run_units(summary)['F'][1]}]"
-    rows = []
-    loops = {(str(x.get("preload")), str(x.get("force_level"))): x for x in (summary.get("reprediction") or {}).get("loops", [])}
-    for d in (summary.get("reprediction") or {}).get("groups", []):
-        key = (str(d.get("preload")), str(d.get("force_level")))
-        loop = loops.get(key, {})
-        resolved = d.get("peak_resolved")
-        why = "not bracketed by the dwells" if d.get("peak_bracketed") is False else "not resolved by the dwells"
-        peak = (lambda v: format_percent(v, 3, sign=True)) if resolved is not False else (lambda v: why)
-        lrms = (loop.get("filtered") or {}).get("rms_difference")
-        rows.append({
-            "preload": key[0], F: format_value(d.get("force_level")),
-            "peak frequency error [%]": peak(d.get("peak_frequency_error_percent")),
-            "peak magnitude error [%]": peak(d.get("peak_amplitude_error_percent")),
-            "rms error at the measured dwells [%]": format_percent(d.get("point_rms_error_percent"), 2),
-            "loop rms difference (filtered) [%]": format_percent(None if lrms is None else 100 * lrms, 2),
-            "peak resolved by the dwells": resolved,
-        })
-    return rows
 
 
 #: Significant digits of values shown without a standard error, where four would hide the differences.
@@ -342,16 +234,6 @@ def campaign_sections(result, figs, summary=None) -> list:
     if delay.get("delay_s") is not None or delay.get("error"):
         appendix.paragraphs.append(_delay_text(delay))
     return [head, laws, repred, figures, notes, records, appendix]
-
-
-def _delay_text(delay) -> str:
-    """The channel delay as a sentence with its standard error, 95 % interval and unit (or its error)."""
-    if delay.get("delay_s") is None:
-        return f"channel delay not estimated: {delay.get('error')}"
-    v, se = float(delay["delay_s"]) * 1e3, delay.get("stderr_s")
-    se = float(se) * 1e3 if se is not None and np.isfinite(se) and se > 0 else None
-    return ("channel delay tau of the response channel behind the excitation channel (negative: the response "
-            f"leads): {format_estimate(v, se, 'ms') if se is not None else format_value(v, 4) + ' ms (given)'}")
 
 
 #: Most figures drawn for one campaign (a campaign of many groups would otherwise spend

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .formatting import slug
 from .identify_plots import new_axes
 
 __all__ = ["plot_reprediction", "reprediction_rows", "reprediction_figures"]
@@ -107,8 +108,6 @@ def reprediction_figures(result) -> list:
     drawn with the campaign's figures)."""
     from ..app.reprediction import group_loops
     from .identify_plots import plot_hysteresis
-    from .output import slug
-
     out = []
     reps = list(getattr(result, "repredictions", ()))
     for p in dict.fromkeys(r.preload for r in reps):

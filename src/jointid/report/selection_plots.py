@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .formatting import slug, tex_safe
 from .identify_plots import new_axes
 from .tables import format_table
 
@@ -43,8 +44,6 @@ def plot_selection(selection, ax=None):
         ax2.plot(cv, y, "ko", ms=4, label="CV force score")
         ax2.set_xscale("log")
         ax2.set_xlabel("leave-one-level-out restoring-force score (1 = noise) [1]", fontsize=8)
-    from .output import tex_safe
-
     title = f"model selection, preload {tex_safe(selection.preload)}" if selection.preload is not None \
         else "model selection"
     ax.set_title(title, fontsize=9)
@@ -54,8 +53,6 @@ def plot_selection(selection, ax=None):
 
 def plot_level_equality(adequacy, ax=None):
     """Each shared parameter at each force level, relative to its common value, with 95 % intervals."""
-    from .output import tex_safe
-
     ax = new_axes(ax)
     for j, e in enumerate(adequacy.equality):
         ref = e.common if e.common != 0 else 1.0
@@ -76,8 +73,6 @@ def plot_level_equality(adequacy, ax=None):
 
 def selection_figures(result) -> list:
     """``(file name, caption, figure)`` of the selection ranking and level-equality plots of a campaign result."""
-    from .output import slug
-
     out = []
     for p, sel in (getattr(result, "selections", None) or {}).items():
         if sel is None:

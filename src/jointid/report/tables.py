@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from .formatting import format_estimate, format_percent, format_value, text_table
+from .formatting import format_ci, format_estimate, format_percent, format_pm, format_value, text_table, unit_of
 
 __all__ = ["format_table", "campaign_report", "record_rows", "group_rows"]
 
@@ -80,7 +80,6 @@ def campaign_report(result) -> str:
     preload model with 95 % intervals, the force gain when identified, adequacy and selection,
     the paper's Table 5 per group, damping laws (Table 2), power laws, re-predictions,
     failures.  Every number goes through :mod:`jointid.report.formatting`."""
-    from .output import _delay_text, _law_rows, _power_rows, _reprediction_table
     from .summary import adequacy_rows, lead_lines, run_units, selection_rows, table5_rows
 
     summary = result.summary()
@@ -177,3 +176,81 @@ def campaign_report(result) -> str:
         for kind, n, example in group_messages(r.error for r in result.failed):  # one line per kind of error
             out.append(f"  {example}" if n == 1 else f"  {n} records: {kind} (e.g. {example})")
     return "\n".join(out)
+
+
+def _law_rows(summary) -> list:
+    from .summary import Z95, coefficient_note, run_units
+
+    units = run_units(summary)
+    rows = []
+    for d in summary.get("damping_law") or []:
+        coef, se = d.get("coefficients"), d.get("stderr") or []
+        if coef is None:
+            rows.append({"preload": str(d.get("preload")), "coefficient": "–", "value ± standard error": "not fitted",
+                         "95 % interval": "–", "unit": "", "note": "", "fit": str(d.get("error") or "")})
+            continue
+        fit = (f"chi²/dof {format_value(d.get('chi2_dof'), 3)}, p = {format_value(d.get('p_value'), 2)}, "
+               f"{d.get('n_records', '?')} records") if d.get("chi2_dof") is not None else ""
+        for k, v in enumerate(coef):
+            s_k = se[k] if k < len(se) else None
+            name = f"c{k}"
+            label, unit = units.get(name, (name, unit_of(name)))
+            ci = [v - Z95 * s_k, v + Z95 * s_k] if s_k is not None and np.isfinite(s_k) else None
+            rows.append({"preload": str(d.get("preload")), "coefficient": label,
+                         "value ± standard error": format_pm(v, s_k), "95 % interval": format_ci(ci, s_k),
+                         "unit": unit if k <= 2 or label == name else f"1/(m^{k} s)",
+                         "note": coefficient_note(name, v, s_k), "fit": fit if k == 0 else ""})
+    return rows
+
+
+def _power_rows(summary) -> list:
+    from .summary import run_units
+
+    gain_free = run_units(summary)["F"][1] == "V"
+    F = f"F [{run_units(summary)['F'][1]}]"
+    alpha_unit = "m²/s² / (m/s²)^n" if gain_free else "J/N^n"
+    rows = []
+    for d in summary.get("power_law") or []:
+        n_pts = len(d.get("force") or []) or None
+        dof = None if n_pts is None else n_pts - 2  # U = alpha F^n: two parameters
+        rows.append({"preload": str(d.get("preload")), F: format_value(d.get("force_level")),
+                     "records": n_pts if n_pts is not None else "–",
+                     f"alpha [{alpha_unit}]": format_value(d.get("alpha"), 4),
+                     "n ± standard error [1]": format_pm(d.get("n"), d.get("n_stderr"), dof=dof)
+                     if d.get("n") is not None else str(d.get("error") or "–"),
+                     "n within [2, 3]": d.get("within_2_3")})
+    return rows
+
+
+def _reprediction_table(summary) -> list:
+    from .summary import run_units
+
+    F = f"F [{run_units(summary)['F'][1]}]"
+    rows = []
+    loops = {(str(x.get("preload")), str(x.get("force_level"))): x for x in (summary.get("reprediction") or {}).get("loops", [])}
+    for d in (summary.get("reprediction") or {}).get("groups", []):
+        key = (str(d.get("preload")), str(d.get("force_level")))
+        loop = loops.get(key, {})
+        resolved = d.get("peak_resolved")
+        why = "not bracketed by the dwells" if d.get("peak_bracketed") is False else "not resolved by the dwells"
+        peak = (lambda v: format_percent(v, 3, sign=True)) if resolved is not False else (lambda v: why)
+        lrms = (loop.get("filtered") or {}).get("rms_difference")
+        rows.append({
+            "preload": key[0], F: format_value(d.get("force_level")),
+            "peak frequency error [%]": peak(d.get("peak_frequency_error_percent")),
+            "peak magnitude error [%]": peak(d.get("peak_amplitude_error_percent")),
+            "rms error at the measured dwells [%]": format_percent(d.get("point_rms_error_percent"), 2),
+            "loop rms difference (filtered) [%]": format_percent(None if lrms is None else 100 * lrms, 2),
+            "peak resolved by the dwells": resolved,
+        })
+    return rows
+
+
+def _delay_text(delay) -> str:
+    """The channel delay as a sentence with its standard error, 95 % interval and unit (or its error)."""
+    if delay.get("delay_s") is None:
+        return f"channel delay not estimated: {delay.get('error')}"
+    v, se = float(delay["delay_s"]) * 1e3, delay.get("stderr_s")
+    se = float(se) * 1e3 if se is not None and np.isfinite(se) and se > 0 else None
+    return ("channel delay tau of the response channel behind the excitation channel (negative: the response "
+            f"leads): {format_estimate(v, se, 'ms') if se is not None else format_value(v, 4) + ' ms (given)'}")
