@@ -8,7 +8,8 @@ import pytest
 
 from jointid.identify.model import PreloadForceStateMapping
 from jointid.identify.powerlaw import PowerLaw
-from jointid.identify.selection import select_model, single_mode_model
+from jointid.app.heldout_scoring import single_mode_model
+from jointid.identify.selection import select_model
 from jointid.identify.terms import library
 from jointid.simulate.hbm import frequency_response
 from jointid.simulate.model import SingleModeModel

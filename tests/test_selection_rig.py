@@ -8,7 +8,8 @@ import pytest
 from jointid.app.demo import run_demo
 from jointid.app.reprediction import repredict_group
 from jointid.identify.model import PreloadForceStateMapping
-from jointid.identify.selection import select_model, single_mode_model
+from jointid.app.heldout_scoring import single_mode_model
+from jointid.identify.selection import select_model
 from jointid.identify.terms import library
 
 

@@ -108,5 +108,9 @@ class IllConditionedWarning(JointidWarning):
     """A regression is too ill-conditioned to resolve some of its coefficients."""
 
 
+class ExtrapolationWarning(JointidWarning):
+    """A fitted law is used where the data do not support it (beyond its amplitudes, or unresolved)."""
+
+
 class ConvergenceWarning(JointidWarning):
     """A solver stopped early but returned a usable result."""

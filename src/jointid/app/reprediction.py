@@ -241,7 +241,7 @@ def identified_model(result, group):
 
     selection = (getattr(result, "selections", None) or {}).get(group.preload)
     if selection is not None and selection.model is not None:
-        from ..identify.selection import single_mode_model
+        from .heldout_scoring import single_mode_model
         from ..identify.terms import library
 
         m = selection.model

@@ -75,7 +75,7 @@ def model_name(terms, power_laws=False) -> str:
 
     names = set(library(list(terms)).names)
     for c in DEFAULT_CANDIDATES:
-        if set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws):
+        if c.hysteretic is None and set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws):
             return c.name
     return " + ".join(terms) + ("; power laws" if power_laws else "")
 

@@ -387,6 +387,8 @@ class HystereticForceStateMapping:
     start : sequence of float, optional
         Starting nonlinear parameters (Jenkins: ``log`` slip displacement; Iwan: ``log phi_max``,
         ``chi``, ``beta``) instead of the coarse grid.
+    search_evaluations, max_evaluations : int
+        Evaluations allowed to each local search from the coarse grid and to the final one.
 
     Attributes
     ----------
@@ -395,7 +397,10 @@ class HystereticForceStateMapping:
         Physical parameters and their standard errors (``result_.names``).
     """
 
-    def __init__(self, law="jenkins", n_time=512, n_sliders=60, phi_min_ratio=1e-4, start=None):
+    def __init__(self, law="jenkins", n_time=512, n_sliders=60, phi_min_ratio=1e-4, start=None, search_evaluations=200,
+                 max_evaluations=400):
+        self.search_evaluations = int(search_evaluations)
+        self.max_evaluations = int(max_evaluations)
         self.law = law
         self.n_time = n_time
         self.n_sliders = n_sliders
@@ -469,10 +474,11 @@ class HystereticForceStateMapping:
                     starts.append(cands[i])
                 if len(starts) == N_STARTS:
                     break
-            best = min((optimize.least_squares(coarse, s0, max_nfev=200, **opts) for s0 in starts),
+            best = min((optimize.least_squares(coarse, s0, max_nfev=self.search_evaluations, **opts)
+                        for s0 in starts),
                        key=lambda r: r.cost)
             eta0 = np.clip(best.x, lo_a, hi_a)
-        sol = optimize.least_squares(proj, eta0, max_nfev=400, **opts)
+        sol = optimize.least_squares(proj, eta0, max_nfev=self.max_evaluations, **opts)
         eta = np.asarray(sol.x, float)
         res, beta = self._projected(shape, eta, U, P, recs, W)
         p = np.concatenate([beta, eta])

@@ -41,11 +41,14 @@ import numpy as np
 from scipy import linalg
 
 from .._blas import single_threaded
-from ..errors import IdentificationError, JointidError, JointidWarning
+from ..errors import ExtrapolationWarning, IdentificationError, JointidError, JointidWarning
 from .fsm import own_fits, pooled_inputs, record_whitenings
+from .heldout import (FAR_FROM_BRANCH, HystereticFirstHarmonic, LevelPrediction, PolynomialFirstHarmonic, level_errors,
+                      measured_fundamental)
+from .hysteretic import HystereticForceStateMapping
 from .model import (PreloadForceStateMapping, expand, fit_laws, in_band_rows, law_orders, law_size, parameter_names,
                     score_covariance, use_in_band)
-from .powerlaw import POWER, PowerLaw, is_power
+from .powerlaw import POWER, is_power
 from .regression import lstsq_from_reduced
 from .terms import TermLibrary, library
 
@@ -59,7 +62,7 @@ __all__ = [
     "select_broadband",
     "broadband_candidates",
     "forward_selection",
-    "single_mode_model",
+    "damping_law_flags",
 ]
 
 #: A nonlinear parameter closer to zero than this many standard errors is not resolved.
@@ -83,6 +86,7 @@ class Candidate:
     name: str
     terms: str
     amplitude_laws: tuple = ()
+    hysteretic: str | None = None
 
     @property
     def library(self) -> TermLibrary:
@@ -97,11 +101,15 @@ class Candidate:
 
     @property
     def n_parameters(self) -> int:
+        if self.hysteretic is not None:  # k, c, the law's force scale and its nonlinear parameters
+            return 3 + HYSTERETIC_NONLINEAR[self.hysteretic]
         return int(sum(law_size(L) for L in self.orders()))
 
     @property
     def n_exponents(self) -> int:
-        """Power-law exponents among the parameters (nonlinear in the model)."""
+        """Parameters the model is nonlinear in (power-law exponents; a hysteretic law's shape)."""
+        if self.hysteretic is not None:
+            return HYSTERETIC_NONLINEAR[self.hysteretic]
         return int(sum(is_power(L) for L in self.orders()))
 
     def law_specs(self) -> dict:
@@ -109,6 +117,8 @@ class Candidate:
         return {k: (POWER if is_power(v) else int(v)) for k, v in self.amplitude_laws}
 
     def describe(self) -> str:
+        if self.hysteretic is not None:
+            return f"k q + c q' + {HYSTERETIC_TEXT[self.hysteretic]} (hysteretic)"
         laws = ", ".join(f"{k}(q_max) power law" if is_power(v) else f"{k}(q_max) order {v}"
                          for k, v in self.amplitude_laws if is_power(v) or v > 0)
         return self.terms + (f"; {laws}" if laws else "")
@@ -121,14 +131,17 @@ def _family(name, terms, damping_order=2, stiffness_order=0):
     return Candidate(name, terms, tuple(laws))
 
 
-def default_candidates(damping_order=2) -> tuple:
+def default_candidates(damping_order=2, hysteretic=True) -> tuple:
     """The physically motivated families, each with the damping law ``c(q_max)`` of ``damping_order``.
 
     The micro-slip families carry the power laws of an Iwan joint instead
     (:mod:`jointid.identify.powerlaw`): ``omega^2(q_max) = omega1^2 + s q_max^p'`` and
     ``c(q_max) = c0 + c1 q_max^p``, alone or beside a cubic spring (the joint law of
-    :func:`jointid.identify.jointlaw.fit_iwan` with its cubic part).
+    :func:`jointid.identify.jointlaw.fit_iwan` with its cubic part).  With ``hysteretic``, a
+    Jenkins element and Segalman's four-parameter Iwan joint beside ``k q + c q'``, fitted to the
+    loops by :class:`~jointid.identify.hysteretic.HystereticForceStateMapping`.
     """
+    hyst = (Candidate("Jenkins", "q + q'", (), "jenkins"), Candidate("Iwan", "q + q'", (), "iwan4")) if hysteretic else ()
     return (
         _family("linear", "q + q'", damping_order),
         _family("cubic", "q - q^3 + q'", damping_order),
@@ -139,9 +152,12 @@ def default_candidates(damping_order=2) -> tuple:
         _family("amplitude-dependent stiffness", "q + q'", damping_order, 2),
         _family("micro-slip", "q + q'", POWER, POWER),
         _family("micro-slip + cubic", "q - q^3 + q'", POWER, POWER),
-    )
+    ) + hyst
 
 
+#: Nonlinear parameters of each hysteretic law (Jenkins: slip displacement; Iwan: phi_max, chi, beta).
+HYSTERETIC_NONLINEAR = {"jenkins": 1, "iwan4": 3}
+HYSTERETIC_TEXT = {"jenkins": "Jenkins element (kt, Fs)", "iwan4": "four-parameter Iwan joint (K_T, F_S, chi, beta)"}
 #: The default candidate families (damping law of order 2).
 DEFAULT_CANDIDATES = default_candidates()
 #: Terms :func:`forward_selection` may add by default.
@@ -168,14 +184,27 @@ class CandidateScore:
         and degree of freedom; about 1 when the model explains the held-out level to the noise)
         and its standard error over the held-out records.
     cv_amplitude_rms_percent, cv_amplitude_max_percent : float
-        Rms and largest relative error of the held-out records' steady-state amplitude
-        predicted by harmonic balance [%] (``nan`` when not computed, ``inf`` when a
-        held-out level could not be solved).
+        Rms and largest relative error of the held-out records' fundamental amplitude, each
+        predicted on its own branch (:mod:`jointid.identify.heldout`) [%] (``nan`` when not
+        computed, ``inf`` when a held-out level could not be solved).
     unresolved : tuple of str
         Nonlinear parameters less than ``RESOLVED_T`` standard errors from zero.
     condition_number : float
     error : str or None
         Why the candidate could not be fitted.
+    heldout_score : float
+        Leave-one-level-out prediction error (rms over the levels of
+        :attr:`jointid.identify.heldout.LevelPrediction.score`), the selection's measure.
+    heldout_peak_frequency_percent, heldout_peak_amplitude_percent : float
+        Largest held-out peak errors over the levels whose dwells resolve the peak (``nan``: none).
+    heldout_peaks_resolved : int
+        Held-out levels whose measured peak is resolved by the dwells.
+    flags : tuple of str
+        Warnings about the model: a damping law that reaches zero inside or just beyond the
+        measured amplitudes, a held-out level predicted outside the fitted amplitude range, a
+        held-out dwell far from every steady state of the model.
+    residual_rms : float
+        Hysteretic candidates: weighted residual rms of the loop fit (1 = noise).
     """
 
     candidate: Candidate
@@ -193,6 +222,13 @@ class CandidateScore:
     unresolved: tuple = ()
     condition_number: float = float("nan")
     error: str | None = None
+    heldout_score: float = float("nan")
+    heldout_peak_frequency_percent: float = float("nan")
+    heldout_peak_amplitude_percent: float = float("nan")
+    heldout_peaks_resolved: int = 0
+    flags: tuple = ()
+    residual_rms: float = float("nan")
+    law_start: tuple = field(default=(), repr=False)  # a hysteretic law's nonlinear parameters (fit's start)
 
     @property
     def name(self) -> str:
@@ -226,6 +262,13 @@ class CandidateScore:
             "unresolved": list(self.unresolved),
             "condition_number": num(self.condition_number),
             "error": self.error,
+            "hysteretic_law": self.candidate.hysteretic,
+            "heldout_score": num(self.heldout_score),
+            "heldout_peak_frequency_percent": num(self.heldout_peak_frequency_percent),
+            "heldout_peak_amplitude_percent": num(self.heldout_peak_amplitude_percent),
+            "heldout_peaks_resolved": int(self.heldout_peaks_resolved),
+            "flags": list(self.flags),
+            "residual_rms": num(self.residual_rms),
         }
 
 
@@ -254,6 +297,14 @@ class SelectionResult:
         :class:`~jointid.identify.model.PreloadForceStateMapping`.
     method : str
         ``"ranking"`` (all candidates) or ``"forward"`` (forward selection path).
+    n_records : int
+    hysteretic_model : HystereticFit or None
+        The selected hysteretic law fitted to all records, when a hysteretic candidate is picked.
+    stand_in : str or None
+        Then the polynomial candidate (best held-out score) whose ``model`` stands in for it where
+        a polynomial model is needed (re-prediction of the FRFs).
+    heldout : bool
+        The pick was decided by held-out prediction (else by the criterion and the CV force score).
     """
 
     preload: object
@@ -268,6 +319,9 @@ class SelectionResult:
     model: object = field(default=None, repr=False)
     method: str = "ranking"
     n_records: int = 0
+    hysteretic_model: object = field(default=None, repr=False)
+    stand_in: str | None = None
+    heldout: bool = False
 
     def score(self, name) -> CandidateScore:
         for s in self.scores:
@@ -289,12 +343,13 @@ class SelectionResult:
 
     def table(self) -> list:
         """Rows of the ranking table (dicts), best first, with the criterion difference."""
-        ic0 = getattr(self.best, self.criterion)
+        finite = [getattr(s, self.criterion) for s in self.scores if np.isfinite(getattr(s, self.criterion))]
+        ic0 = min(finite) if finite else float("nan")
         rows = []
         for s in self.scores:
             d = s.summary()
             ic = getattr(s, self.criterion)
-            d["delta_ic"] = float(ic - ic0) if np.isfinite(ic) else None
+            d["delta_ic"] = float(ic - ic0) if np.isfinite(ic) and np.isfinite(ic0) else None
             d["selected"] = s.name == self.selected
             rows.append(d)
         return rows
@@ -308,9 +363,11 @@ class SelectionResult:
             "selected_amplitude_laws": self.candidate.law_specs(),
             "criterion": self.criterion,
             "delta": float(self.delta),
-            "rule": (f"fewest parameters among the models with {self.criterion.upper()} within {self.delta:g} of the "
-                     f"lowest and a cross-validated restoring-force score within one standard error of the best "
-                     f"of them"),
+            "rule": self.rule,
+            "decided_by": "held-out prediction" if self.heldout else self.criterion,
+            "flags": list(self.selected_score.flags),
+            "hysteretic_model": None if self.hysteretic_model is None else self.hysteretic_model.summary(),
+            "stand_in": self.stand_in,
             "method": self.method,
             "levels": list(self.levels),
             "n_records": int(self.n_records),
@@ -321,13 +378,23 @@ class SelectionResult:
             "model": None if self.model is None else self.model.summary(),
         }
 
+    @property
+    def rule(self) -> str:
+        if self.heldout:
+            return (f"fewest parameters among the fully resolved models whose leave-one-level-out prediction score "
+                    f"(peak amplitude and frequency on the measured branch where the dwells resolve the peak, else "
+                    f"the dwells' amplitudes) is within {HELDOUT_RATIO:g} x the best + {HELDOUT_FLOOR:g}")
+        return (f"fewest parameters among the models with {self.criterion.upper()} within {self.delta:g} of the "
+                f"lowest and a cross-validated restoring-force score within one standard error of the best "
+                f"of them")
+
     def report(self) -> str:
         head = f"preload {self.preload}: " if self.preload is not None else ""
         lines = [f"{head}model selection over {len(self.levels)} force levels ({self.n_records} records), "
-                 f"ranked by {self.criterion.upper()} (calibrated chi-square, scale {self.scale:.3g}, "
-                 f"nu {self.nu:.4g})",
+                 + ("ranked by held-out prediction; " if self.heldout else f"ranked by {self.criterion.upper()} ")
+                 + f"(calibrated chi-square, scale {self.scale:.3g}, nu {self.nu:.4g})",
                  f"  {'model':<30} {'P':>2} {'chi2':>10} {'d' + self.criterion.upper():>8} {'CV force':>14} "
-                 f"{'CV ampl. %':>10}  unresolved"]
+                 f"{'CV ampl. %':>10} {'held-out':>9} {'peak f %':>9} {'peak A %':>9}  unresolved"]
         for row in self.table():
             mark = "*" if row["selected"] else " "
             cv = "-" if row["cv_force"] is None else (f"{row['cv_force']:.3g}±{row['cv_force_se']:.2g}"
@@ -336,10 +403,19 @@ class SelectionResult:
             chi = "-" if row["chi2"] is None else f"{row['chi2']:.5g}"
             dic = "-" if row["delta_ic"] is None else f"{row['delta_ic']:.4g}"
             extra = ", ".join(row["unresolved"]) if row["error"] is None else f"failed: {row['error']}"
+
+            def g(x, fmt):
+                return "-" if x is None else format(x, fmt)
+
             lines.append(f"{mark} {row['name']:<30} {row['n_parameters']:>2} {chi:>10} {dic:>8} {cv:>14} "
-                         f"{amp:>10}  {extra}")
+                         f"{amp:>10} {g(row['heldout_score'], '.3g'):>9} "
+                         f"{g(row['heldout_peak_frequency_percent'], '.3g'):>9} "
+                         f"{g(row['heldout_peak_amplitude_percent'], '.3g'):>9}  {extra}")
         lines.append(f"  selected: {self.selected} ({self.candidate.describe()}), the simplest model within noise "
                      f"of the best")
+        if self.stand_in:
+            lines.append(f"  polynomial stand-in for re-prediction: {self.stand_in}")
+        lines += [f"  warning: {f}" for f in self.selected_score.flags]
         return "\n".join(lines)
 
     def _repr_html_(self):
@@ -364,6 +440,7 @@ class _Record:
     omega: float
     forcing: float  # fundamental amplitude of the force
     fit: object  # RecordFit in the common library
+    a1: float  # fundamental amplitude of q
     whitening: object  # its Whitening (record weight)
 
 
@@ -372,6 +449,7 @@ class _Space:
 
     def __init__(self, lib, sigs, fits, weighting):
         self.lib = lib
+        self.sigs = list(sigs)
         wh = record_whitenings(fits, weighting)
         self.records = []
         lam = []
@@ -382,7 +460,7 @@ class _Space:
             fc = f.scores.force_coefficients
             forcing = float(np.hypot(fc[1], fc[2])) if fc is not None and np.all(np.isfinite(fc[:3])) else float("nan")
             rows = np.column_stack(in_band_rows(f, w)) if self.in_band else w.rows
-            self.records.append(_Record(rows, float(f.q_max), float(s.omega), forcing, f, w))
+            self.records.append(_Record(rows, float(f.q_max), float(s.omega), forcing, f, measured_fundamental(s), w))
             # covariance of the weighted reduced error W (z - R theta) under the noise model
             V = f.scores.covariance(f.coefficients)
             A = linalg.solve_triangular(w.R, V, trans="T", check_finite=False)
@@ -436,43 +514,78 @@ class _Space:
         return sandwich(A.T @ A, V)
 
 
-def single_mode_model(lib, orders, theta):
-    """The :class:`~jointid.simulate.model.SingleModeModel` of fitted preload-model parameters."""
-    from ..simulate.model import SingleModeModel
-
-    coefs, laws, k = [], {}, 0
-    for t, L in zip(lib, orders):
-        n = law_size(L)
-        if n == 1:
-            coefs.append(float(theta[k]))
-        else:
-            coefs.append(0.0)
-            laws[t.coefficient] = (PowerLaw(*theta[k:k + 3]) if is_power(L)
-                                   else tuple(float(x) for x in theta[k : k + L + 1]))
-        k += n
-    return SingleModeModel(lib, tuple(coefs), laws)
+#: Evaluations of each coarse local search and of the final search of a hysteretic candidate's fit.
+HYSTERETIC_SEARCH = 30
+HYSTERETIC_EVALUATIONS = 60
+#: Samples of a period for a hysteretic candidate's law force (the selection's fits; the final fit uses the default).
+HYSTERETIC_N_TIME = 256
+#: Models whose held-out score is within this factor of the best (plus ``HELDOUT_FLOOR``) are within noise.
+HELDOUT_RATIO = 1.5
+#: Held-out score differences below this (0.2 % of an amplitude) are not told apart.
+HELDOUT_FLOOR = 0.002
+#: A damping law checked for ``c(q_max) <= 0`` up to this multiple of the largest measured amplitude.
+DAMPING_CHECK_REACH = 1.5
+#: A held-out level whose amplitudes exceed the fitted ones by more than this fraction is an extrapolation.
+EXTRAPOLATION_MARGIN = 0.05
 
 
-def _predicted_amplitudes(lib, orders, theta, space, idx, n_harmonics):
-    """Harmonic-balance ``q_max`` at the records ``idx`` (one forcing: their mean fundamental)."""
-    from ..simulate.hbm import frequency_response
+def damping_law_flags(lib, orders, theta, q_max_measured, reach=DAMPING_CHECK_REACH) -> tuple:
+    """Messages for a viscous-damping law ``c(q_max)`` that is not positive from zero up to ``reach`` times the
+    largest measured amplitude (an unresolved law extrapolated: the model would feed energy in)."""
+    if "q'" not in lib.names:
+        return ()
+    i = lib.index("q'")
+    q_hi = float(np.max(q_max_measured))
+    grid = np.linspace(0.0, reach * q_hi, 301)
+    c = np.array([expand(orders, q, theta)[0][i] for q in grid])
+    bad = np.flatnonzero(~(c > 0))
+    if not bad.size:
+        return ()
+    q0 = float(grid[bad[0]])
+    where = "inside the measured amplitudes" if q0 <= q_hi else f"at {q0 / q_hi:.2g} x the largest measured amplitude"
+    return (f"the damping law c(q_max) reaches {float(c[bad[0]]):.3g} <= 0 at q_max = {q0:.3g} ({where}, largest "
+            f"measured {q_hi:.3g}): its coefficients are not resolved and the law must not be extrapolated",)
 
-    model = single_mode_model(lib, orders, theta)
-    if "q" not in lib.names or model.coefficients_at(0.0)[lib.index("q")] <= 0:
-        return np.full(len(idx), np.inf)
-    recs = [space.records[i] for i in idx]
-    F = float(np.nanmean([r.forcing for r in recs]))
-    omegas = np.array([r.omega for r in recs])
-    order = np.argsort(omegas)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        frf = frequency_response(model, F, omegas[order], n_harmonics=n_harmonics, stability=False)
-    out = np.empty(len(idx))
-    out[order] = np.asarray(frf.q_max, float)
+
+def _fold_scores(level_preds):
+    """Aggregate of the held-out levels' :class:`~jointid.identify.heldout.LevelPrediction`."""
+    scores = np.array([lp.score for lp in level_preds], float)
+    dwell = np.concatenate([lp.dwell_errors_percent for lp in level_preds])
+    res = [lp for lp in level_preds if lp.peak_resolved]
+    fe = max((abs(lp.peak_frequency_error_percent) for lp in res), default=float("nan"))
+    ae = max((abs(lp.peak_amplitude_error_percent) for lp in res), default=float("nan"))
+    out = dict(heldout_score=float(np.sqrt(np.mean(scores**2))) if np.all(np.isfinite(scores)) else float("inf"),
+               heldout_peak_frequency_percent=float(fe), heldout_peak_amplitude_percent=float(ae),
+               heldout_peaks_resolved=len(res))
+    if np.all(np.isfinite(dwell)):
+        out.update(cv_amplitude_rms_percent=float(np.sqrt(np.mean(dwell**2))),
+                   cv_amplitude_max_percent=float(np.max(np.abs(dwell))))
+    else:
+        out.update(cv_amplitude_rms_percent=float("inf"), cv_amplitude_max_percent=float("inf"))
     return out
 
 
-def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv_amplitude):
+def _predict_level(fh, space, test, fitted_amax, predictor, cand, fitted):
+    """Held-out prediction of one level; ``(LevelPrediction, flags)``."""
+    recs = [space.records[i] for i in test]
+    F = float(np.nanmean([r.forcing for r in recs]))
+    w = np.array([r.omega for r in recs])
+    am = np.array([r.a1 for r in recs])
+    inj = None if predictor is None else (lambda ww, aa: predictor(cand, fitted, F, ww, aa))
+    lp = level_errors(fh, F, w, am, inj)
+    flags = []
+    if np.max(am) > (1.0 + EXTRAPOLATION_MARGIN) * fitted_amax:
+        flags.append(f"held out at force {F:.4g}: amplitudes up to {np.max(am) / fitted_amax:.3g} x the fitted range "
+                     "(the laws are extrapolated there)")
+    if lp.far_from_branch:
+        flags.append(f"held out at force {F:.4g}: a dwell lies more than {100 * FAR_FROM_BRANCH:g} % from every "
+                     "steady state the model predicts")
+    return lp, flags
+
+
+def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv_amplitude, predictor=None):
+    if cand.hysteretic is not None:
+        return _score_hysteretic(space, cand, levels_of, level_values, criterion_only or not cv_amplitude)
     lib = cand.library
     cols = space.columns(lib)
     orders = law_orders(lib, cand.laws)
@@ -492,11 +605,13 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
     unresolved = tuple(n for n, v, s, (t, j) in zip(names, theta, se, _param_terms(lib, orders))
                        if j is not None and (t.name not in ("q", "q'") or (t.name == "q" and j > 0))
                        and not (abs(v) > RESOLVED_T * s))
+    qm = np.array([r.q_max for r in space.records])
+    flags = list(damping_law_flags(lib, orders, theta, qm))
     kw = dict(parameter_names=names, parameters=theta, stderr=se, chi2=chi2, dof=space.nu - P, aic=aic, bic=bic,
               unresolved=unresolved, condition_number=float(cond))
     if criterion_only or len(level_values) < 2:
-        return CandidateScore(cand, **kw)
-    per_record, amp_err = [], []
+        return CandidateScore(cand, flags=tuple(flags), **kw)
+    per_record, preds = [], []
     for lev in level_values:
         test = [i for i in all_idx if levels_of[i] == lev]
         train = [i for i in all_idx if levels_of[i] != lev]
@@ -507,19 +622,70 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
         per_record += list(space.residuals(cols, orders, th, test) / space.p)
         if cv_amplitude:
             try:
-                q_pred = _predicted_amplitudes(lib, orders, th, space, test, n_harmonics)
-                q_meas = np.array([space.records[i].q_max for i in test])
-                amp_err += list(100.0 * (q_pred / q_meas - 1.0))
-            except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError):
-                amp_err += [np.inf] * len(test)  # a held-out level the model cannot solve
+                fh = PolynomialFirstHarmonic(lib, orders, th)
+                if not fh.stiffness0() > 0:
+                    raise IdentificationError("no positive linear stiffness")
+                amax = max(space.records[i].a1 for i in train)
+                lp, fl = _predict_level(fh, space, test, amax, predictor, cand, (lib, orders, th))
+                preds.append(lp)
+                flags += fl
+            except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+                preds.append(LevelPrediction(np.full(len(test), np.inf), np.zeros(len(test), int), False, float("nan"),
+                                             float("nan"), float("nan"), float("inf"), True))
+                flags.append(f"held out at force level {lev}: no prediction ({exc})")
     e = np.asarray(per_record, float)
     cvf = float(np.mean(e))
     cvse = float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 and np.all(np.isfinite(e)) else float("nan")
-    if amp_err:
-        a = np.asarray(amp_err, float)
-        kw.update(cv_amplitude_rms_percent=float(np.sqrt(np.mean(a**2))),
-                  cv_amplitude_max_percent=float(np.max(np.abs(a))))
-    return CandidateScore(cand, cv_force=cvf, cv_force_se=cvse, **kw)
+    if preds:
+        kw.update(_fold_scores(preds))
+    return CandidateScore(cand, cv_force=cvf, cv_force_se=cvse, flags=tuple(dict.fromkeys(flags)), **kw)
+
+
+def _hysteretic_fit(law, sigs, start=None):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", JointidWarning)
+        fit = HystereticForceStateMapping(law, n_time=HYSTERETIC_N_TIME, start=start, search_evaluations=HYSTERETIC_SEARCH,
+                                          max_evaluations=HYSTERETIC_EVALUATIONS).fit(sigs)
+    return fit, [str(c.message) for c in caught if issubclass(c.category, JointidWarning)]
+
+
+def _score_hysteretic(space, cand, levels_of, level_values, criterion_only):
+    """Score of a hysteretic candidate: its loop fit to all records and its held-out levels."""
+    sigs = space.sigs
+    try:
+        est, warn = _hysteretic_fit(cand.hysteretic, sigs)
+    except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        return CandidateScore(cand, error=str(exc))
+    res = est.result_
+    unresolved = [n for n in res.names[2:]
+                  if n not in ("chi", "beta") and not abs(res.get(n)) > RESOLVED_T * res.get_stderr(n)]
+    if any(("edge of its range" in w) or ("beyond the largest measured amplitude" in w) for w in warn):
+        unresolved += [n for n in res.names[3:] if n not in unresolved]  # the law's shape is not resolved
+    kw = dict(parameter_names=tuple(res.names), parameters=np.asarray(res.values, float), stderr=np.asarray(res.stderr),
+              unresolved=tuple(dict.fromkeys(unresolved)), residual_rms=float(res.residual_rms),
+              law_start=tuple(float(x) for x in est.parameters_[3:]))
+    flags = list(warn)
+    if criterion_only or len(level_values) < 2:
+        return CandidateScore(cand, flags=tuple(flags), **kw)
+    preds = []
+    all_idx = list(range(len(sigs)))
+    for lev in level_values:
+        test = [i for i in all_idx if levels_of[i] == lev]
+        train = [i for i in all_idx if levels_of[i] != lev]
+        try:
+            if len(train) < 3:
+                raise IdentificationError(f"{len(train)} records to fit")
+            sub, _ = _hysteretic_fit(cand.hysteretic, [sigs[i] for i in train], start=est.parameters_[3:])
+            amax = max(space.records[i].a1 for i in train)
+            lp, fl = _predict_level(HystereticFirstHarmonic(sub.result_), space, test, amax, None, cand, sub.result_)
+            preds.append(lp)
+            flags += fl
+        except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+            preds.append(LevelPrediction(np.full(len(test), np.inf), np.zeros(len(test), int), False, float("nan"),
+                                         float("nan"), float("nan"), float("inf"), True))
+            flags.append(f"held out at force level {lev}: no prediction ({exc})")
+    kw.update(_fold_scores(preds))
+    return CandidateScore(cand, flags=tuple(dict.fromkeys(flags)), **kw)
 
 
 def _param_terms(lib, orders):
@@ -531,15 +697,28 @@ def _pick(scores, criterion, delta):
     """The simplest model within noise of the best (see the module notes).
 
     Models with a nonlinear parameter the data do not resolve (less than ``RESOLVED_T``
-    standard errors from zero) are left out when any model is fully resolved.  Among the
-    models whose criterion is within ``delta`` of the lowest, those whose
-    cross-validated restoring-force score is within one standard error of the best score
-    among them are kept; the one with the fewest parameters (then the lowest criterion) wins.
+    standard errors from zero, or a hysteretic law's shape at the edge of its range or beyond
+    the measured amplitudes) are left out when any model is fully resolved.
+
+    With held-out predictions (:mod:`jointid.identify.heldout`): the models whose held-out score
+    is at most ``HELDOUT_RATIO`` times the best plus ``HELDOUT_FLOOR`` are within noise of the
+    best; the one with the fewest parameters wins (then the fewest parameters it is nonlinear
+    in, then the score).  Without them (broadband records, ``cv_amplitude=False``): among the
+    models whose criterion is within ``delta`` of the lowest, those whose cross-validated
+    restoring-force score is within one standard error of the best among them are kept; the one
+    with the fewest parameters (then the lowest criterion) wins.
     """
-    ok = [s for s in scores if s.error is None and np.isfinite(getattr(s, criterion))]
+    ok = [s for s in scores if s.error is None]
+    held = [s for s in ok if np.isfinite(s.heldout_score)]
+    if held:
+        held = [s for s in held if not s.unresolved] or held  # a term the data do not resolve is not within noise
+        b = min(s.heldout_score for s in held)
+        near = [s for s in held if s.heldout_score <= HELDOUT_RATIO * b + HELDOUT_FLOOR]
+        return min(near, key=lambda s: (s.n_parameters, s.candidate.n_exponents, s.heldout_score)).name
+    ok = [s for s in ok if np.isfinite(getattr(s, criterion))]
     if not ok:
         raise IdentificationError("no candidate model could be fitted")
-    ok = [s for s in ok if not s.unresolved] or ok  # a term the data do not resolve is not within noise
+    ok = [s for s in ok if not s.unresolved] or ok
     ic0 = min(getattr(s, criterion) for s in ok)
     near = [s for s in ok if getattr(s, criterion) <= ic0 + delta]
     cv = [s for s in near if np.isfinite(s.cv_force)]
@@ -594,7 +773,7 @@ def _candidates(candidates, damping_order):
 @single_threaded
 def select_model(signals_list, levels, candidates=None, *, criterion="bic", delta=2.0, damping_order=2,
                  weighting="noise", filtered=True, cross_validate=True, cv_amplitude=True, n_harmonics=5,
-                 preload=None, fit_selected=True) -> SelectionResult:
+                 preload=None, fit_selected=True, predictor=None) -> SelectionResult:
     """Rank candidate models of one preload and pick the simplest within noise of the best.
 
     Parameters
@@ -610,15 +789,24 @@ def select_model(signals_list, levels, candidates=None, *, criterion="bic", delt
     delta : float
         Criterion difference counted as within noise.
     cross_validate, cv_amplitude : bool
-        Leave-one-force-level-out scores (restoring force; steady-state amplitude by
-        harmonic balance).
+        Leave-one-force-level-out scores (restoring force; held-out steady-state amplitudes and
+        peaks, :mod:`jointid.identify.heldout`, which decide the pick).  Without ``cv_amplitude``
+        the hysteretic candidates are fitted but not cross-validated, and the pick falls back on
+        the criterion and the restoring-force score.
     n_harmonics : int
-        Harmonics of the harmonic balance.
+        Kept for compatibility (the held-out prediction is a first-harmonic balance).
     preload : object
         Label stored on the result.
     fit_selected : bool
         Fit the selected model to all records with
-        :class:`~jointid.identify.model.PreloadForceStateMapping` (stored as ``model``).
+        :class:`~jointid.identify.model.PreloadForceStateMapping` (stored as ``model``); a
+        hysteretic pick is refitted by :class:`~jointid.identify.hysteretic.HystereticForceStateMapping`
+        (``hysteretic_model``) and ``model`` is then the best polynomial candidate (``stand_in``).
+    predictor : callable, optional
+        ``predictor(candidate, (lib, orders, theta), forcing, omegas, a_measured) -> amplitudes``:
+        the held-out dwells' amplitudes of a polynomial candidate by another solver (the
+        application injects a multi-harmonic balance this way); default the first-harmonic roots
+        on each dwell's own branch.
 
     Returns
     -------
@@ -630,23 +818,44 @@ def select_model(signals_list, levels, candidates=None, *, criterion="bic", delt
     sigs, levels, common, space = _prepare(signals_list, levels, [c.library for c in cands], weighting, filtered,
                                            None)
     lv = _unique_levels(levels)
-    scores = [_score(space, c, levels, lv, not cross_validate, n_harmonics, cv_amplitude) for c in cands]
+    scores = [_score(space, c, levels, lv, not cross_validate, n_harmonics, cv_amplitude, predictor) for c in cands]
     return _result(scores, criterion, delta, lv, common, space, sigs, preload, weighting, filtered, fit_selected,
                    "ranking")
 
 
 def _result(scores, criterion, delta, lv, common, space, sigs, preload, weighting, filtered, fit_selected, method):
-    scores = sorted(scores, key=lambda s: (getattr(s, criterion), s.n_parameters))
+    heldout = any(s.error is None and np.isfinite(s.heldout_score) for s in scores)
+    if heldout:
+        scores = sorted(scores, key=lambda s: (s.error is not None, not np.isfinite(s.heldout_score), s.heldout_score,
+                                               s.n_parameters))
+    else:
+        scores = sorted(scores, key=lambda s: (getattr(s, criterion), s.n_parameters))
     chosen = _pick(scores, criterion, delta)
-    model = None
+    picked = next(s for s in scores if s.name == chosen)
+    model = hyst = stand_in = None
     if fit_selected:
-        cand = next(s.candidate for s in scores if s.name == chosen)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", JointidWarning)
-            model = PreloadForceStateMapping(cand.terms, amplitude_laws=cand.laws, weighting=weighting,
-                                             filtered=filtered, preload=preload).fit(sigs).result_
+        cand = picked.candidate
+        if cand.hysteretic is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)  # its warnings are the candidate's flags
+                hyst = HystereticForceStateMapping(cand.hysteretic, start=list(picked.law_start) or None
+                                                  ).fit(sigs).result_
+            poly = [s for s in scores if s.candidate.hysteretic is None and s.error is None]
+            if poly:
+                cand = min(poly, key=lambda s: (s.heldout_score if heldout else getattr(s, criterion))).candidate
+                stand_in = cand.name
+            else:
+                cand = None
+        if cand is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                model = PreloadForceStateMapping(cand.terms, amplitude_laws=cand.laws, weighting=weighting,
+                                                 filtered=filtered, preload=preload).fit(sigs).result_
+    head = f"preload {preload}: " if preload is not None else ""
+    for f in picked.flags:
+        warnings.warn(f"{head}selected {chosen}: {f}", ExtrapolationWarning, stacklevel=3)
     return SelectionResult(preload, tuple(scores), chosen, criterion, float(delta), tuple(lv), common.names,
-                           space.scale, space.nu, model, method, len(sigs))
+                           space.scale, space.nu, model, method, len(sigs), hyst, stand_in, heldout)
 
 
 @single_threaded
@@ -702,7 +911,7 @@ def forward_selection(signals_list, levels, *, base="q + q'", pool=FORWARD_POOL,
 
 def broadband_candidates(damping_order=None) -> tuple:
     """The default families without amplitude laws (a broadband record has no single ``q_max``)."""
-    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if "q" not in c.laws)
+    return tuple(Candidate(c.name, c.terms) for c in DEFAULT_CANDIDATES if "q" not in c.laws and c.hysteretic is None)
 
 
 @single_threaded
