@@ -24,6 +24,7 @@ import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import linalg
 
 from ..errors import IdentificationError, IllConditionedWarning, JointidWarning
 from ..identify.fsm import PooledFit, PooledForceStateMapping, band_average
@@ -160,9 +161,14 @@ def _group_fits(outcomes, use, settings):
     return groups, outcomes, notes
 
 
-def _c_covariance(groups, members_of, idx):
+def _c_covariance(groups, members_of, idx, delay_term=None):
     """Covariance of the pooled per-record ``c`` of the records ``idx`` (one preload), low-rank per group,
-    with each record's ``var(q_max)`` and ``cov(c, q_max)``: keyword arguments of :func:`fit_damping_law`."""
+    with each record's ``var(q_max)`` and ``cov(c, q_max)``: keyword arguments of :func:`fit_damping_law`.
+
+    ``delay_term``: ``(d c / d tau per record of idx, var(tau))`` of an estimated channel delay, one number
+    shared by every record: its rank-one term ``var(tau) g g^T`` is added (the records were corrected by the
+    estimate, so its error moves every ``c`` at once; :func:`delay_sensitivity`).
+    """
     parts, order, qv, cq = [], [], [], []
     for g in groups:
         members = members_of[(g.preload, g.force_level)]
@@ -181,13 +187,41 @@ def _c_covariance(groups, members_of, idx):
         return {}
     C = LowRankCovariance.stack(parts)
     pos = [order.index(i) for i in idx]
-    return {"c_covariance": LowRankCovariance(C.d[pos], C.U[pos], C.W, C.W_inv),
-            "q_max_variance": np.array(qv)[pos], "c_q_max_covariance": np.array(cq)[pos]}
+    C = LowRankCovariance(C.d[pos], C.U[pos], C.W, C.W_inv)
+    if delay_term is not None:
+        g, var = np.asarray(delay_term[0], float), float(delay_term[1])
+        if var > 0 and np.all(np.isfinite(g)):
+            W_inv = None if C.W_inv is None else linalg.block_diag(C.W_inv, [[1.0 / var]])
+            C = LowRankCovariance(C.d, np.column_stack([C.U, g]), linalg.block_diag(C.W, [[var]]), W_inv)
+    return {"c_covariance": C, "q_max_variance": np.array(qv)[pos], "c_q_max_covariance": np.array(cq)[pos]}
 
 
-def _damping_laws(outcomes, use, groups, preloads, settings):
+def delay_sensitivity(omega1, omega):
+    """``d c / d tau`` of a dwell at ``omega`` of a mode at ``omega1``: a response channel late by ``tau``
+    adds ``tau (omega1^2 - omega^2)`` to the damping ``c`` (first-order model of :mod:`jointid.identify.delay`)."""
+    return np.asarray(omega1, float) ** 2 - np.asarray(omega, float) ** 2
+
+
+def _delay_term(delay, outcomes, groups, idx):
+    """``(d c / d tau, var(tau))`` of the records ``idx`` for an estimated delay, else None; each record's
+    ``omega1`` is its group's pooled one."""
+    if delay is None or getattr(delay, "source", None) != "estimated":
+        return None
+    se = getattr(delay, "stderr_s", None)
+    if se is None or not np.isfinite(se) or not se > 0:
+        return None
+    w1 = {(g.preload, g.force_level): g.pooled.omega1 for g in groups if g.pooled is not None}
+    try:
+        g = [delay_sensitivity(w1[outcomes[i].spec.group], outcomes[i].signals.omega) for i in idx]
+    except KeyError:
+        return None
+    return np.array(g, float), float(se) ** 2
+
+
+def _damping_laws(outcomes, use, groups, preloads, settings, delay=None):
     """The damping law per preload over all its records' pooled ``c``: the paper's two-step method, with
-    the full covariance of the per-record ``c`` (correlated through each group's shared coefficients)."""
+    the full covariance of the per-record ``c`` (correlated through each group's shared coefficients and,
+    with an estimated channel delay, through the delay's error)."""
     index_of = {o.spec.index: i for i, o in enumerate(outcomes)}
     members_of = {(g.preload, g.force_level): [index_of[x] for x in g.record_indices] for g in groups}
     laws, errors = {}, {}
@@ -199,7 +233,8 @@ def _damping_laws(outcomes, use, groups, preloads, settings):
                 [outcomes[i].c_pooled for i in idx],
                 [outcomes[i].c_pooled_stderr for i in idx],
                 order=settings.damping_order,
-                **_c_covariance([g for g in groups if g.preload == preload], members_of, idx),
+                **_c_covariance([g for g in groups if g.preload == preload], members_of, idx,
+                                _delay_term(delay, outcomes, groups, idx)),
             )
         except IdentificationError as exc:
             laws[preload] = None
@@ -289,7 +324,7 @@ def fit_campaign(outcomes, settings, *, name="", root="", structures=None, chann
     use = pooled_mask(outcomes, settings)
     groups, outcomes, notes = _group_fits(outcomes, use, settings)
     preloads = sorted({g.preload for g in groups}, key=group_key)
-    laws, law_errors = _damping_laws(outcomes, use, groups, preloads, settings)
+    laws, law_errors = _damping_laws(outcomes, use, groups, preloads, settings, channel_delay)
     models, model_errors, model_notes = _preload_models(outcomes, use, preloads, settings)
     final = []
     for g in groups:
