@@ -214,3 +214,13 @@ def test_monte_carlo_selection_rate(family):
     print(family, names)
     ok = sum(nm in FAMILIES[family][3] for nm in names)
     assert ok >= math.ceil(0.9 * n), names
+
+
+def test_selection_flags_reach_the_report_text():
+    from jointid.report.summary import selection_rows
+
+    summary = {"selection": [{"preload": 120, "selected": "cubic", "selected_terms": "q - q^3 + q'", "ranking": [],
+                              "flags": ["the damping law c(q_max) reaches -0.1 <= 0 at q_max = 0.002"]}]}
+    (row,) = selection_rows(summary)
+    assert "reaches -0.1 <= 0" in row["warnings"]
+    assert selection_rows({"selection": [{"preload": 1, "selected": "cubic", "ranking": []}]})[0]["warnings"] == "–"

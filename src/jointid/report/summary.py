@@ -436,7 +436,8 @@ def selection_rows(summary) -> list:
                      f"the paper's cubic behind by [{crit or 'IC'}]": ("selected" if cubic.get("selected") else
                                                                          format_value(cubic.get("delta_ic"), 3))
                      if cubic else "–",
-                     "records": it.get("n_records", "–"), "rule": str(it.get("rule") or "–")})
+                     "records": it.get("n_records", "–"), "rule": str(it.get("rule") or "–"),
+                     "warnings": "; ".join(str(f) for f in it.get("flags") or []) or "–"})
     return rows
 
 

@@ -110,6 +110,7 @@ def campaign_report(result) -> str:
         out += [f"  preload {r['preload']}: {r['selected model']} ({r['terms']}, {r['parameters']} parameters, "
                 f"{r['records']} records); " + "; ".join(f"{k} {v}" for k, v in r.items() if k.startswith("the paper"))
                 for r in sels]
+        out += [f"  preload {r['preload']}: warning: {r['warnings']}" for r in sels if r.get("warnings", "–") != "–"]
         out.append("")
     from .backbone_plots import backbone_report_lines
 
