@@ -100,6 +100,7 @@ class CampaignResult:
     selections: dict = field(default_factory=dict)  # SelectionResult per preload (terms="auto")
     selection_errors: dict = field(default_factory=dict)
     fit_checks: tuple = ()  # goodness of fit of the campaign-level regressions (jointid.app.fit_checks)
+    hysteresis_loops: tuple = ()  # GroupLoops per group (jointid.app.reprediction): measured and identified loops
 
     @property
     def failed(self):

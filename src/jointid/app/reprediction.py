@@ -23,8 +23,12 @@ Errors reported
     * the rms relative difference between each measured point and the model solved at
       that record's own frequency and forcing.
 
-:func:`loop_errors` gives, per group, the rms difference between the measured and
-identified hysteresis loops (seed Figs 17-19) of the group's largest-amplitude record.
+:func:`campaign_loops` forms, once per identification, the measured and identified
+hysteresis loops (seed Figs 17-19) of each group's largest-amplitude record
+(:class:`GroupLoops`, carried in the campaign result as ``hysteresis_loops``; the report
+only draws them), and :func:`loop_errors` gives their rms differences and areas for
+``results.json``.  :func:`dwell_loops` forms the loops of the seed's Figs 17-19 (dwells
+about the resonance of the top force level, with the damping law's ``c(q_max)``).
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ from ..signal.harmonics import fit_harmonics
 from ..rounding import format_percent, format_value
 
 __all__ = ["Reprediction", "identified_model", "repredict_group", "repredict_campaign", "with_repredictions",
-           "group_loops", "loop_errors"]
+           "GroupLoops", "group_loops", "campaign_loops", "loop_errors", "DwellLoops", "dwell_loops"]
 
 #: Largest interval beside a computed peak, relative to its frequency: a re-predicted or exact
 #: peak is sampled this finely before the parabola through its three largest samples.  The
@@ -440,8 +444,48 @@ def repredict_campaign(result, **kw) -> tuple:
 
 def with_repredictions(result):
     """``result`` with every group's FRF re-predicted (:func:`repredict_campaign`) and its
-    loops compared (:func:`loop_errors`), with the models ``result`` holds now."""
+    loops compared (:func:`loop_errors`, of the loops ``result`` carries), with the models
+    ``result`` holds now."""
     return replace(result, repredictions=repredict_campaign(result), loops=tuple(loop_errors(result)))
+
+
+@dataclass(frozen=True, eq=False)
+class GroupLoops:
+    """Measured and identified hysteresis loops of one group's largest-amplitude record.
+
+    Attributes
+    ----------
+    preload, force_level : object
+        The group.
+    record : RecordOutcome
+        The group's record of largest ``q_max`` (among the records of its pooled fit).
+    filtered, unfiltered : HysteresisLoop or str
+        The loop from the filtered signals (first period of the harmonic fit) and from the
+        unfiltered ones (synchronous average), or the reason it could not be formed.
+    gain_free : bool
+        The force gain was identified: the force is in gain-free units (times the gain).
+    """
+
+    preload: object
+    force_level: object
+    record: object
+    filtered: object
+    unfiltered: object
+    gain_free: bool = False
+
+    @property
+    def loops(self) -> dict:
+        """``{"filtered": ..., "unfiltered": ...}`` (a loop, or the reason it is missing)."""
+        return {"filtered": self.filtered, "unfiltered": self.unfiltered}
+
+    def summary(self) -> dict:
+        """One row of ``results.json`` ``reprediction.loops``: the record, and for each loop its
+        relative rms difference and areas (or an ``error``)."""
+        row = {"preload": self.preload, "force_level": self.force_level, "file": self.record.spec.file,
+               "frequency_hz": float(self.record.signals.frequency_hz), "q_max": float(self.record.fit.q_max)}
+        for key, loop in self.loops.items():
+            row[key] = {"error": loop} if isinstance(loop, str) else loop.summary()
+        return row
 
 
 def group_loops(result, group):
@@ -485,22 +529,99 @@ def group_loops(result, group):
     return best, loops
 
 
-def loop_errors(result) -> list:
-    """Measured vs identified hysteresis loops (:func:`group_loops`) of every group, as numbers.
-
-    Returns one dict per group: ``file``, ``frequency_hz``, ``q_max``, and for the
-    ``filtered`` and ``unfiltered`` loops the relative rms difference
-    ``rms_difference`` and the enclosed areas (or an ``error``).
-    """
-    rows = []
+def campaign_loops(result) -> tuple:
+    """:class:`GroupLoops` of every group with a pooled fit and records (:func:`group_loops`),
+    in the order of ``result.groups``: formed once where the campaign result is built and
+    carried in it (``hysteresis_loops``)."""
+    out = []
     for g in result.groups:
         found = group_loops(result, g)
         if found is None:
             continue
         best, loops = found
-        row = {"preload": g.preload, "force_level": g.force_level, "file": best.spec.file,
-               "frequency_hz": float(best.signals.frequency_hz), "q_max": float(best.fit.q_max)}
-        for key, loop in loops.items():
-            row[key] = {"error": loop} if isinstance(loop, str) else loop.summary()
-        rows.append(row)
-    return rows
+        out.append(GroupLoops(g.preload, g.force_level, best, loops["filtered"], loops["unfiltered"],
+                              g.gain is not None))
+    return tuple(out)
+
+
+def loop_errors(source) -> list:
+    """Measured vs identified hysteresis loops of every group, as numbers.
+
+    ``source`` is a sequence of :class:`GroupLoops`, or a campaign result (the loops it
+    carries in ``hysteresis_loops``, formed by :func:`campaign_loops` when it carries none).
+
+    Returns one dict per group: ``file``, ``frequency_hz``, ``q_max``, and for the
+    ``filtered`` and ``unfiltered`` loops the relative rms difference
+    ``rms_difference`` and the enclosed areas (or an ``error``).
+    """
+    if hasattr(source, "groups"):
+        source = getattr(source, "hysteresis_loops", None) or campaign_loops(source)
+    return [gl.summary() for gl in source]
+
+
+@dataclass(frozen=True, eq=False)
+class DwellLoops:
+    """The loops of the seed's Figs 17-19 for one preload, at its top force level.
+
+    The identified model of each loop is the record's own fit with the group's shared
+    ``omega1^2`` and ``k3`` and the damping law's ``c(q_max)`` at the record's amplitude.
+
+    Attributes
+    ----------
+    preload, force_level : object
+    records : tuple of RecordOutcome
+        The resonant dwell (largest ``q_max``) and the dwells three below and three above it
+        in frequency (fewer at the ends of the band), by frequency.
+    filtered : tuple of HysteresisLoop
+        Their loops from the filtered signals.
+    largest : RecordOutcome
+        The dwell of largest ``q_max``.
+    largest_filtered, largest_unfiltered : HysteresisLoop
+        Its loops from the filtered and from the unfiltered signals (seed Fig 19).
+    """
+
+    preload: object
+    force_level: object
+    records: tuple
+    filtered: tuple
+    largest: object
+    largest_filtered: object
+    largest_unfiltered: object
+
+
+def _law_theta(o, group, law):
+    """A record's coefficients with the group's shared ``omega1^2`` and ``k3`` and the law's ``c(q_max)``."""
+    theta = np.array(o.fit.coefficients, float)
+    names = o.fit.coefficient_names
+    theta[names.index("omega1^2")] = group.pooled.get("omega1^2")
+    if "k3" in names and group.pooled.k3 is not None:
+        theta[names.index("k3")] = group.pooled.k3
+    if "c" in names and law is not None:
+        theta[names.index("c")] = float(law(o.fit.q_max))
+    return theta
+
+
+def dwell_loops(result, preload, around: int = 3) -> DwellLoops | None:
+    """The hysteresis loops of the seed's Figs 17-19 (:class:`DwellLoops`) of ``preload`` at its
+    top force level; ``None`` when that group has no pooled fit or fewer than three identified
+    records.  ``around`` is the distance (in dwells) of the neighbours of the resonant dwell."""
+    from ..identify.hysteresis import hysteresis_loop
+
+    levels = [g.force_level for g in result.groups if g.preload == preload]
+    if not levels:
+        return None
+    top = max(levels)
+    g = result.group(preload, top)
+    recs = sorted([o for o in result.records if o.ok and o.spec.group == (preload, top)],
+                  key=lambda o: o.signals.frequency_hz)
+    if len(recs) < 3 or g.pooled is None:
+        return None
+    law = result.damping_laws.get(preload)
+    i_pk = int(np.argmax([o.fit.q_max for o in recs]))
+    pick = sorted({max(i_pk - around, 0), i_pk, min(i_pk + around, len(recs) - 1)})
+    chosen = tuple(recs[i] for i in pick)
+    filtered = tuple(hysteresis_loop(o.signals, o.fit.terms, _law_theta(o, g, law), filtered=True) for o in chosen)
+    o = max(recs, key=lambda o: o.fit.q_max)
+    theta = _law_theta(o, g, law)
+    both = {filt: hysteresis_loop(o.signals, o.fit.terms, theta, filtered=filt) for filt in (True, False)}
+    return DwellLoops(preload, top, chosen, filtered, o, both[True], both[False])

@@ -190,16 +190,16 @@ def _identify_stepped_sine(campaign, settings, selections=None, selection_errors
         if a is not None and a.adequate is False:
             warnings.warn(f"preload {a.preload}: {a.verdict}", JointidWarning, stacklevel=stacklevel)
     from .fit_checks import fit_checks
+    from .reprediction import campaign_loops, loop_errors, repredict_campaign
 
+    hysteresis = campaign_loops(fit)  # each group's measured and identified loops, formed once (the report draws them)
     repredictions, loops = (), ()
     if settings.repredict:
-        from .reprediction import loop_errors, repredict_campaign
-
-        repredictions, loops = repredict_campaign(fit), tuple(loop_errors(fit))
+        repredictions, loops = repredict_campaign(fit), tuple(loop_errors(hysteresis))
     return CampaignResult(
         campaign.name, str(campaign.root), settings, fit.records, fit.groups, fit.damping_laws, fit.damping_law_errors,
         repredictions=repredictions, loops=loops, structures=fit.structures, channel_delay=delay,
         channel_delay_error=delay_error, broadband=broadband, models=fit.models, model_errors=fit.model_errors,
         backbones=backbones, adequacy=adequacy, adequacy_errors=adequacy_errors, selections=selections or {},
-        selection_errors=selection_errors or {}, fit_checks=tuple(fit_checks(fit)),
+        selection_errors=selection_errors or {}, fit_checks=tuple(fit_checks(fit)), hysteresis_loops=hysteresis,
     )

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..identify.hysteresis import hysteresis_loop
 from ..io.outputset import MARKER, check_output_folder, new_run_id, output_set
 from ..io.results import atomic_write, write_csv, write_json
 from .formatting import SLUG_MAX, format_value, slug, tex_safe  # noqa: F401  (slug, tex_safe re-exported)
@@ -243,10 +242,12 @@ MAX_FIGURES = 60
 
 def campaign_figures(result, max_figures=MAX_FIGURES, per_group=True) -> list:
     """``(file name, caption, figure)`` of the damping laws, power laws, per-record
-    parameters and hysteresis loops (filtered and unfiltered) of a campaign result;
+    parameters and hysteresis loops (filtered and unfiltered, as the result carries them in
+    ``hysteresis_loops``) of a campaign result;
     at most ``max_figures`` (preload by preload, group by group).  ``per_group=False``
     leaves out the two figures of each group (per-record parameters, hysteresis loops)."""
     written = []
+    loops = {(x.preload, x.force_level): x for x in getattr(result, "hysteresis_loops", ())}
     preloads = list(result.damping_laws)
     for p in preloads:
         if len(written) >= max_figures:
@@ -282,18 +283,17 @@ def campaign_figures(result, max_figures=MAX_FIGURES, per_group=True) -> list:
                             axes[0].figure))
             if g.gain is not None:  # the force column is not a force: no loops in force units
                 continue
-            j = int(np.argmax([r.fit.q_max for r in members]))
-            best = members[j]
-            axes = new_axes(None, figsize=(9.0, 3.8), ncols=2)
-            # the identified model of the group: shared omega1^2, k3 and this record's own damping
-            theta = np.array([g.pooled.get(n) if n in g.pooled.shared_names else g.pooled.get(n)[j]
-                              for n in best.fit.coefficient_names])
-            for ax, filt in zip(axes, (True, False)):
-                loop = hysteresis_loop(best.signals, best.fit.terms, theta, filtered=filt)
+            found = loops.get((g.preload, g.force_level))  # formed once in the identification (hysteresis_loops)
+            drawn = [] if found is None else [x for x in (found.filtered, found.unfiltered) if not isinstance(x, str)]
+            if not drawn:
+                continue
+            axes = np.atleast_1d(new_axes(None, figsize=(9.0, 3.8), ncols=2))
+            for ax, loop in zip(axes, drawn):
                 plot_hysteresis(loop, ax=ax, show_identified=True)
-            axes[0].set_title(f"hysteresis, {tex_safe(best.spec.file)}")
-            written.append((f"hysteresis_{tag}.png", f"hysteresis loops (filtered, unfiltered) of {best.spec.file}, "
-                                                     f"preload {p}, F = {g.force_level}", axes[0].figure))
+            axes[0].set_title(f"hysteresis, {tex_safe(found.record.spec.file)}")
+            written.append((f"hysteresis_{tag}.png", f"hysteresis loops (filtered, unfiltered) of "
+                                                     f"{found.record.spec.file}, preload {p}, F = {g.force_level}",
+                            axes[0].figure))
     from .reprediction_plots import reprediction_figures
 
     written += reprediction_figures(result)

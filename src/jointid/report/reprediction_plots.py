@@ -105,9 +105,10 @@ def reprediction_rows(result) -> list:
 def reprediction_figures(result) -> list:
     """``(file name, caption, figure)``: the re-predicted FRFs of each preload, and the
     hysteresis loops of the groups whose force gain was identified (the others' loops are
-    drawn with the campaign's figures)."""
-    from ..app.reprediction import group_loops
+    drawn with the campaign's figures); the loops are those the result carries
+    (``hysteresis_loops``, formed in the identification)."""
     from .identify_plots import plot_hysteresis
+
     out = []
     reps = list(getattr(result, "repredictions", ()))
     for p in dict.fromkeys(r.preload for r in reps):
@@ -118,14 +119,10 @@ def reprediction_figures(result) -> list:
         out.append((f"reprediction_{slug(p)}.png",
                     f"nonlinear FRFs of preload {p}: measured dwells (markers) and the identified model solved by "
                     "harmonic balance (lines); legend: peak errors", ax.figure))
-    for g in result.groups:
-        if g.gain is None:
+    for found in getattr(result, "hysteresis_loops", ()):
+        if not found.gain_free:
             continue
-        found = group_loops(result, g)
-        if found is None:
-            continue
-        best, loops = found
-        drawn = [loop for loop in loops.values() if not isinstance(loop, str)]
+        drawn = [loop for loop in (found.filtered, found.unfiltered) if not isinstance(loop, str)]
         if not drawn:
             continue
         axes = np.atleast_1d(new_axes(None, figsize=(9.0, 3.8), ncols=len(drawn)))
@@ -133,7 +130,7 @@ def reprediction_figures(result) -> list:
             plot_hysteresis(loop, ax=ax, show_identified=True, gain_free=True)
             ax.set_title(f"{'filtered' if loop.filtered else 'unfiltered'}: rms difference "
                          f"{100 * loop.rms_difference:.1f} %", fontsize=8)
-        out.append((f"hysteresis_{slug(g.preload)}_F{slug(g.force_level)}.png",
-                    f"hysteresis loops (gain-free units) of {best.spec.file}, preload {g.preload}, "
-                    f"level {g.force_level}", axes[0].figure))
+        out.append((f"hysteresis_{slug(found.preload)}_F{slug(found.force_level)}.png",
+                    f"hysteresis loops (gain-free units) of {found.record.spec.file}, preload {found.preload}, "
+                    f"level {found.force_level}", axes[0].figure))
     return out
