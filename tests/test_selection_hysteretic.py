@@ -127,6 +127,11 @@ def jenkins_small():
     return clean_campaign("Jenkins", n_dwells=5, span=0.05)
 
 
+@pytest.fixture(scope="module")
+def cubic_small():
+    return clean_campaign("cubic", n_dwells=5, span=0.05)
+
+
 def test_jenkins_campaign_selects_jenkins_by_held_out_prediction(jenkins_small):
     """BIC had picked the amplitude-dependent stiffness here (its held-out top-level peak 50 % off)."""
     sigs, lev = noisy(jenkins_small, np.random.default_rng(3))
@@ -155,12 +160,10 @@ def test_damping_law_reaching_zero_is_flagged():
     assert damping_law_flags(lib, orders, [K, 0.1, 50.0, 1e4], [1e-3, 2e-3]) == ()
 
 
-def test_selected_model_with_flags_warns():
+def test_selected_model_with_flags_warns(cubic_small):
     """A selected model whose damping law turns negative within its range warns (ExtrapolationWarning) and the
     summary and console report carry the flag."""
-    rng = np.random.default_rng(0)
-    data = clean_campaign("cubic", n_dwells=5, span=0.05)
-    sigs, lev = noisy(data, rng)
+    sigs, lev = noisy(cubic_small, np.random.default_rng(0))
     # a candidate with a damping law that the data do not resolve, alone: it is selected and flagged or not
     cand = Candidate("cubic, damping order 2", "q - q^3 + q'", (("q'", 2),))
     with warnings.catch_warnings(record=True) as caught:
@@ -224,3 +227,19 @@ def test_selection_flags_reach_the_report_text():
     (row,) = selection_rows(summary)
     assert "reaches -0.1 <= 0" in row["warnings"]
     assert selection_rows({"selection": [{"preload": 1, "selected": "cubic", "ranking": []}]})[0]["warnings"] == "–"
+
+
+def test_injected_harmonic_balance_predictor_agrees_with_the_first_harmonic(cubic_small):
+    """The application's multi-harmonic-balance predictor (jointid.app) scores the held-out dwells like the
+    first-harmonic roots on a weakly nonlinear cubic; identify itself never imports simulate."""
+    from jointid.app.heldout_scoring import harmonic_balance_predictor
+
+    sigs, lev = noisy(cubic_small, np.random.default_rng(1))
+    cands = [c for c in default_candidates() if c.name in ("linear", "cubic")]
+    fh = _select(sigs, lev, candidates=cands, fit_selected=False)
+    hb = _select(sigs, lev, candidates=cands, fit_selected=False, predictor=harmonic_balance_predictor())
+    for name in ("linear", "cubic"):
+        a, b = fh.score(name), hb.score(name)
+        print(name, a.cv_amplitude_rms_percent, b.cv_amplitude_rms_percent)
+        assert abs(a.cv_amplitude_rms_percent - b.cv_amplitude_rms_percent) < 0.2 + 0.05 * a.cv_amplitude_rms_percent
+    assert fh.selected == hb.selected == "cubic"
