@@ -65,6 +65,8 @@ __all__ = ["Prediction", "PredictResult", "load_results", "parse_force_levels", 
 DS_MAX = 0.005
 #: Times the default band is widened on one side to bring a peak at its edge inside.
 MAX_WIDEN = 6
+#: The widest default band, as fractions of the model's linear natural frequency.
+WIDEST = (0.5, 2.0)
 Z95 = 1.959963984540054
 
 
@@ -302,6 +304,10 @@ def predict_peak(model, Q, span_hz, n_harmonics=5, *, widen=True, stability=Fals
     a peak at its edge when ``widen``).
     """
     lo, hi = (float(v) for v in span_hz)
+    # a single-mode model says nothing far from its mode: the band is widened to at most half
+    # and twice its linear natural frequency
+    f1 = model.omega1 / (2 * np.pi)
+    lo_min, hi_max = min(lo, WIDEST[0] * f1), max(hi, WIDEST[1] * f1)
     for _ in range(MAX_WIDEN + 1):
         r = _curve(model, Q, (lo, hi), n_harmonics, stability)
         peak = _located_peak(r.omega, r.q_max)
@@ -310,9 +316,13 @@ def predict_peak(model, Q, span_hz, n_harmonics=5, *, widen=True, stability=Fals
         width = hi - lo
         f_top = float(r.omega[int(np.argmax(r.q_max))]) / (2 * np.pi)
         if f_top - lo < hi - f_top:  # the curve leaves the band at its low edge still growing
-            lo = max(lo - width, 0.05 * lo)
+            if lo <= lo_min:
+                break
+            lo = max(lo - width, lo_min)
         else:
-            hi = hi + width
+            if hi >= hi_max:
+                break
+            hi = min(hi + width, hi_max)
     return r, peak, (lo, hi)
 
 
@@ -565,6 +575,12 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
     beyond = False
     if peak is None:
         notes.append(f"no peak in {span[0]:.6g}-{span[1]:.6g} Hz: the response still grows at the edge of the band")
+        if len(r):
+            q_end = float(np.max(r.q_max))
+            for t, c in zip(library(entry["terms"]), model.coefficients_at(q_end)):
+                if t.kind == "damping" and c <= 0 and t.coefficient in model.amplitude_laws:
+                    notes.append(f"damping coefficient {t.coefficient} = {c:.4g} <= 0 at q_max = {q_end:.4g} on the "
+                                 "curve: the damping law, extrapolated, removes no energy there")
     else:
         pf, pq, _ = peak
         rng = entry.get("q_max_range")
