@@ -271,3 +271,25 @@ def test_peak_standard_errors_are_calibrated_by_monte_carlo(tmp_path):
     sd = np.sqrt(np.mean(z**2, axis=0))  # about the truth: bias and spread together
     assert np.all(np.abs(z) < 4.5), z
     assert np.all((0.5 < sd) & (sd < 1.7)), (sd, z)
+
+
+@pytest.mark.parametrize("k3, c", [(-5e6, 0.5), (5e6, 2.0)])
+def test_located_peak_of_a_hardening_and_a_mildly_softening_resonance(k3, c):
+    """The peak located between the continued points against a dense sequential sweep taken the
+    way the upper branch is reached (up in frequency when hardening, down when softening)."""
+    from jointid.app.predict import predict_peak
+    from jointid.simulate.hbm import frequency_response
+    from jointid.simulate.model import SingleModeModel
+
+    model = SingleModeModel("q + -q^3 + q'", (OMEGA1**2, k3, c))
+    r, peak, span = predict_peak(model, 1.0, (25.5, 28.5))
+    f_peak, q_peak, i = peak
+    assert span == (25.5, 28.5) and 0 < i < len(r) - 1
+    lo, hi = (f_peak - 0.3, f_peak + 0.05) if k3 < 0 else (f_peak + 0.3, f_peak - 0.05)
+    w = 2 * np.pi * np.linspace(lo, hi, 3001)
+    sweep = frequency_response(model, 1.0, w, n_harmonics=5, stability=False)
+    k = int(np.argmax(sweep.q_max))
+    assert 0 < k < w.size - 1
+    assert f_peak == pytest.approx(w[k] / (2 * np.pi), abs=2e-4)  # the sweep's spacing, 1.2e-4 Hz
+    assert q_peak == pytest.approx(sweep.q_max[k], rel=2e-6)
+    assert q_peak >= np.max(r.q_max)
