@@ -433,8 +433,11 @@ class Prediction:
             text = (f"{head}: no peak in {format_value(self.frequency_range_hz[0], 6)}-"
                     f"{format_value(self.frequency_range_hz[1], 6)} Hz (the response still grows at its edge)")
         else:
-            text = (f"{head}: peak {format_estimate(self.peak_frequency_hz, self.peak_frequency_hz_stderr, 'Hz')}; "
-                    f"q_max {format_estimate(self.peak_q_max, self.peak_q_max_stderr, 'm')}")
+            def est(v, se, unit, digits):  # without a standard error: the digits the peak location supports
+                return format_estimate(v, se, unit) if np.isfinite(se) else f"{format_value(v, digits)} {unit}"
+
+            text = (f"{head}: peak {est(self.peak_frequency_hz, self.peak_frequency_hz_stderr, 'Hz', 7)}; "
+                    f"q_max {est(self.peak_q_max, self.peak_q_max_stderr, 'm', 6)}")
         if self.folds_hz:
             text += f"; folds at {', '.join(format_value(f, 7) for f in self.folds_hz)} Hz"
         if self.extrapolated:
