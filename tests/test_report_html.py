@@ -134,3 +134,41 @@ def test_report_renders_in_headless_chromium_summary_first(written, tmp_path):
     gray = img[..., :3].mean(axis=-1)
     top = gray[:800]  # the first screen shows the title and the summary table: text and table rules
     assert top.std() > 0.05 and (top < 0.5).mean() > 0.005
+
+
+def test_loops_are_formed_once_in_the_identification_and_carried(written):
+    from jointid.app.reprediction import GroupLoops, group_loops
+    from jointid.io.results import to_jsonable
+
+    result, paths, _ = written
+    carried = result.hysteresis_loops
+    assert carried and all(isinstance(x, GroupLoops) for x in carried)
+    assert [(x.preload, x.force_level) for x in carried] == [(g.preload, g.force_level) for g in result.groups
+                                                              if g.pooled is not None]
+    for x in carried:  # the same loops as formed from the group directly
+        best, loops = group_loops(result, result.group(x.preload, x.force_level))
+        assert best is x.record
+        for key in ("filtered", "unfiltered"):
+            assert not isinstance(loops[key], str)
+            assert loops[key].rms_difference == getattr(x, key).rms_difference
+    # results.json holds the numbers of the carried loops
+    stored = json.loads(paths["results"].read_text())["reprediction"]["loops"]
+    assert stored == to_jsonable([x.summary() for x in carried])
+
+
+def test_report_draws_the_carried_loops_without_computing_them(written, monkeypatch):
+    import dataclasses
+
+    import jointid.identify.hysteresis as hysteresis
+
+    result = written[0]
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the report computed a hysteresis loop")
+
+    monkeypatch.setattr(hysteresis, "hysteresis_loop", refuse)
+    names = [n for n, _, _ in campaign_figures(result)]
+    drawn = [n for n in names if n.startswith("hysteresis_")]
+    assert len(drawn) == len(result.hysteresis_loops) > 0
+    bare = dataclasses.replace(result, hysteresis_loops=())  # nothing carried: nothing drawn
+    assert not [n for n, _, _ in campaign_figures(bare) if n.startswith("hysteresis_")]
