@@ -293,3 +293,14 @@ def test_located_peak_of_a_hardening_and_a_mildly_softening_resonance(k3, c):
     assert f_peak == pytest.approx(w[k] / (2 * np.pi), abs=2e-4)  # the sweep's spacing, 1.2e-4 Hz
     assert q_peak == pytest.approx(sweep.q_max[k], rel=2e-6)
     assert q_peak >= np.max(r.q_max)
+
+
+def test_label_force_levels_give_no_scaling_and_an_unknown_extrapolation(handmade):
+    from jointid.app.predict import predict_from_results
+
+    d = json.loads((handmade / "results.json").read_text())
+    for e in d["groups"] + d["reprediction"]["groups"]:
+        e["force_level"] = "low" if e["force_level"] == 1.0 else "high"
+    (p,) = predict_from_results(d, [1.0], uncertainty=False).predictions
+    assert p.modal_force == 1.0 and not p.extrapolated and p.has_peak
+    assert any("not known" in n for n in p.notes)

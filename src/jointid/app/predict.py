@@ -234,7 +234,8 @@ def force_scaling(results, preload) -> dict:
             ratios.append(Q / F)
     if not ratios:
         return {"modal_force_per_unit": 1.0, "n_levels": 0, "spread": None,
-                "source": "none in the results (no re-prediction): the force level is taken as the modal force"}
+                "source": "no re-prediction of a numeric force level in the results: the force level is taken as "
+                          "the modal force"}
     s = float(np.median(ratios))
     return {"modal_force_per_unit": s, "n_levels": len(ratios),
             "spread": float(np.max(np.abs(np.asarray(ratios) / s - 1.0))),
@@ -553,6 +554,8 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
     notes = []
     if extrapolated:
         notes.append(f"extrapolated: force level {F:g} outside the fitted levels {_levels_text(levels)}")
+    elif not levels:
+        notes.append("the fitted force levels are not numbers: whether this level is extrapolated is not known")
     if frequency_range is not None:
         span, widen = tuple(float(v) for v in frequency_range), False
     else:
