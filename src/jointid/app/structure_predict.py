@@ -5,7 +5,9 @@ each force level the frequency response over the band by the multi-mode harmonic
 condensed on the joint DOFs, continued through folds
 (:mod:`jointid.simulate.structure_hb`), and reports per level the peak of the first-harmonic
 amplitude at every response DOF (located between the continued points), the folds, the
-Newton iterations, the largest relative residual and the cost per point.
+Newton iterations, the largest relative residual and the cost per point.  The stability of
+the points is not reported: Hill's method with the periodic-map Jacobian of slider laws
+(:meth:`jointid.simulate.structure_hb.CondensedHB.growth_rate`) is not yet checked for them.
 :func:`write_structure_predictions` writes ``results.json``, ``report.txt`` and a figure as
 one output set.
 """
