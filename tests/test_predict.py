@@ -304,3 +304,22 @@ def test_label_force_levels_give_no_scaling_and_an_unknown_extrapolation(handmad
     (p,) = predict_from_results(d, [1.0], uncertainty=False).predictions
     assert p.modal_force == 1.0 and not p.extrapolated and p.has_peak
     assert any("not known" in n for n in p.notes)
+
+
+def test_a_damping_law_that_feeds_energy_in_at_the_peak_is_named():
+    """An amplitude law of the q'^3 damping, extrapolated to the predicted peak, turns negative
+    there: the prediction says so (the viscous term keeps the total dissipation positive)."""
+    from jointid.app.predict import predict_level
+
+    entry = {"preload": "p", "terms": ["q", "-q^3", "q'", "q'^3"], "amplitude_laws": {"q'^3": 1},
+             "parameter_names": ["omega1^2", "k3", "c", "c_cubic0", "c_cubic1"],
+             "parameters": [OMEGA1**2, K3, C, 0.05, -30.0], "q_max_range": [1e-4, 0.004],
+             "frequency_hz_range": [25.5, 28.5]}
+    p = predict_level(entry, 1.0, fitted_levels=(0.5,), uncertainty=False)
+    assert p.has_peak and p.extrapolated and p.amplitude_beyond_fitted
+    assert 0.05 - 30.0 * p.peak_q_max < 0
+    (note,) = [n for n in p.notes if "not physical" in n]
+    assert "feeds in" in note
+    entry["parameters"][-1] = -1.0  # positive at the peak: no such note
+    p = predict_level(entry, 1.0, fitted_levels=(0.5,), uncertainty=False)
+    assert not any("not physical" in n for n in p.notes)

@@ -536,6 +536,28 @@ def _peak_stderr(entry, Q, span, n_harmonics, response, peak):
     return float(np.sqrt(max(V[0, 0], 0.0))), float(np.sqrt(max(V[1, 1], 0.0))), None
 
 
+def _negative_damping(model, lib, state) -> list:
+    """A note per damping term with an amplitude law that feeds energy in at this steady state
+    (its coefficient is negative there and its work per cycle is more than 0.1 % of the
+    dissipated energy): the law, extrapolated, is not physical there."""
+    t = np.linspace(0.0, state.period, 512, endpoint=False)
+    q, v = state.q(t), state.velocity(t)
+    theta = np.asarray(state.theta, float)
+    total = float(np.mean(lib.restoring_force(q, v, theta) * v))
+    notes = []
+    for j, term in enumerate(lib):
+        if term.kind != "damping" or term.coefficient not in model.amplitude_laws or theta[j] >= 0:
+            continue
+        unit = np.zeros(theta.size)
+        unit[j] = theta[j]
+        work = float(np.mean(lib.restoring_force(q, v, unit) * v))
+        if work < -1e-3 * abs(total):
+            notes.append(f"damping coefficient {term.coefficient} = {theta[j]:.4g} < 0 at q_max = {state.q_max:.4g}: "
+                         f"its term feeds in {100 * -work / abs(total):.2g} % of the energy dissipated per cycle; "
+                         "the damping law is not physical there")
+    return notes
+
+
 def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_range=None, n_harmonics=5,
                   uncertainty=True) -> Prediction:
     """Predict one preload's response (``models`` entry ``entry``) at one force level.
@@ -598,12 +620,7 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
                 notes.append(f"peak amplitude {pq:.4g} {where}: "
                              + ("the amplitude laws are extrapolated" if model.amplitude_laws
                                 else "beyond the amplitudes the model was fitted on"))
-        lib = library(entry["terms"])
-        theta = model.coefficients_at(pq)
-        for t, c in zip(lib, theta):
-            if t.kind == "damping" and c <= 0 and t.coefficient in model.amplitude_laws:
-                notes.append(f"damping coefficient {t.coefficient} = {c:.4g} <= 0 at the peak amplitude: "
-                             "the damping law is not physical there")
+        notes += _negative_damping(model, library(entry["terms"]), r.state(peak[2]))
         if uncertainty:
             try:
                 sf, sq, why = _peak_stderr(entry, Q, span, n_harmonics, r, peak)
