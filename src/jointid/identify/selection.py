@@ -17,16 +17,24 @@ models of one preload (terms plus amplitude laws, as fitted by
 * **leave-one-force-level-out cross-validation**: the model is fitted on the other force
   levels and predicts the held-out level's restoring force (its calibrated chi-square per
   record and degree of freedom, ``1`` for a model that explains the held-out level to the
-  noise) and its steady-state amplitudes, solved by harmonic balance at the held-out
-  records' frequencies and forcing (:func:`~jointid.simulate.hbm.frequency_response`).
+  noise) and its steady-state amplitudes at the held-out records' frequencies and forcing
+  (first-harmonic balance; a caller may inject a multi-harmonic predictor).
 
-The model picked is the simplest one within noise of the best: a candidate with a nonlinear
-parameter less than three standard errors from zero is not considered (its term is not
-resolved by the data); of the others, those whose criterion is within ``delta`` (2) of the
-lowest are kept, of these those whose cross-validated restoring-force score is within one
-standard error of the best, and of these the one with the fewest parameters wins (at equal
-counts a model linear in its parameters before one with fitted power-law exponents,
-:mod:`jointid.identify.powerlaw`).  With many candidate terms, :func:`forward_selection` grows the model
+Hysteretic candidates (a Jenkins element, the four-parameter Iwan joint) are fitted to the loops
+by :class:`~jointid.identify.hysteretic.HystereticForceStateMapping` and predicted the same way.
+
+The model picked is the simplest one within noise of the best held-out prediction
+(:mod:`jointid.identify.heldout`: each held-out dwell on its own branch, the peak only where the
+dwells resolve it): a candidate with a nonlinear parameter less than three standard errors from
+zero is not considered (its term is not resolved by the data); of the others, those whose
+held-out score is at most ``HELDOUT_RATIO`` times the best plus ``HELDOUT_FLOOR`` are kept, and of
+these the one with the fewest parameters wins (at equal counts a model linear in its parameters
+before one with fitted power-law exponents or a hysteretic shape).  Without held-out
+predictions (broadband records) the criterion decides: those within ``delta`` (2) of the lowest,
+of these those whose cross-validated restoring-force score is within one standard error of the
+best, and the fewest parameters.  The selected model's flags (a damping law reaching zero, a
+held-out level beyond the fitted amplitudes, a dwell far from every steady state) are raised as
+:class:`~jointid.errors.ExtrapolationWarning`.  With many candidate terms, :func:`forward_selection` grows the model
 one term or law order at a time while the criterion drops by more than ``delta``.
 """
 
