@@ -47,7 +47,7 @@ from ..rig.plan import RigCampaign, MeasurementPlan, read_random_record, run_tes
 from ..rig.rig import RigFRF, VirtualRig, seed_rig
 from ..signal.frf import fit_modes, h1_estimate
 from .workflow import CampaignResult, IdentifySettings, identify_campaign
-from .reprediction import PEAK_RTOL, Reprediction, repredict_group
+from .reprediction import PEAK_RTOL, Reprediction, dwell_loops, repredict_group
 
 __all__ = ["DemoSettings", "Reprediction", "PreloadResult", "DemoResult", "run_demo", "CHECK_LIMITS"]
 
@@ -123,6 +123,7 @@ class PreloadResult:
     exact_energy: dict
     joint_exponent: dict | None
     uff_csv_identical: bool | None
+    loops: object = None  # DwellLoops of the seed's Figs 17-19 (jointid.app.reprediction.dwell_loops)
 
     def group(self, force_level):
         return self.result.group(self.preload, force_level)
@@ -572,7 +573,8 @@ def _run_demo(out: Path, progress, seed, settings: DemoSettings, figures, run_id
         same = _uff_csv_identical(camp)
         timings[f"uff_csv_check_{p:g}"] = time.perf_counter() - t0
         results.append(PreloadResult(float(p), rig, camp, frf, fit, update, structure, result, reps,
-                                     _exact_energy(rig, result), _joint_exponent(float(p), result), same))
+                                     _exact_energy(rig, result), _joint_exponent(float(p), result), same,
+                                     dwell_loops(result, float(p))))
     timings["simulation_and_identification"] = time.perf_counter() - t_start
     paths = {}
     cached = []

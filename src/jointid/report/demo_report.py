@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..identify.hysteresis import hysteresis_loop
 from ..io.results import atomic_write
 from .formatting import format_pm, format_value, unit_of
 from .html import Section, write_html
@@ -170,52 +169,32 @@ def _fig13_16(demo):
     return figs
 
 
-def _loop_theta(o, group, law):
-    theta = np.array(o.fit.coefficients, float)
-    names = o.fit.coefficient_names
-    theta[names.index("omega1^2")] = group.pooled.get("omega1^2")
-    if "k3" in names and group.pooled.k3 is not None:
-        theta[names.index("k3")] = group.pooled.k3
-    if "c" in names and law is not None:
-        theta[names.index("c")] = float(law(o.fit.q_max))
-    return theta
-
-
 def _fig17_19(demo):
+    """Seed Figs 17-19 from the loops the demo carries (:class:`~jointid.app.reprediction.DwellLoops`)."""
     figs = []
     for k, pr in enumerate(demo.preloads):
-        top = max(g.force_level for g in pr.result.groups)
-        g = pr.result.group(pr.preload, top)
-        recs = sorted([o for o in pr.result.records if o.ok and o.spec.group == (pr.preload, top)],
-                      key=lambda o: o.signals.frequency_hz)
-        if len(recs) < 3 or g.pooled is None:
+        dl = pr.loops
+        if dl is None:
             continue
-        i_pk = int(np.argmax([o.fit.q_max for o in recs]))
-        pick = sorted({max(i_pk - 3, 0), i_pk, min(i_pk + 3, len(recs) - 1)})
-        axes = np.atleast_1d(new_axes(None, figsize=(11.0, 3.6), ncols=len(pick)))
-        for ax, i in zip(axes, pick):
-            o = recs[i]
-            loop = hysteresis_loop(o.signals, o.fit.terms, _loop_theta(o, g, pr.damping_law), filtered=True)
+        axes = np.atleast_1d(new_axes(None, figsize=(11.0, 3.6), ncols=len(dl.records)))
+        for ax, o, loop in zip(axes, dl.records, dl.filtered):
             plot_hysteresis(loop, ax=ax)
             ax.set_title(f"{o.signals.frequency_hz:.3f} Hz", fontsize=9)
+        top = dl.force_level
         axes[0].figure.suptitle(f"hysteresis loops, preload {_pl(pr.preload)} N, F = {top:g} N", fontsize=10)
         figs.append((f"fig{17 + k}_hysteresis_{_pl(pr.preload)}",
                      f"Seed Fig {17 + k} analogue: nonlinear restoring force Q - q'' - omega1^2 q against q, from the "
                      f"filtered signals (full) and from the identified parameters (dashed), preload "
                      f"{_pl(pr.preload)} N, F = {top:g} N.", axes[0].figure))
     pr = demo.preloads[0]
-    top = max(g.force_level for g in pr.result.groups)
-    recs = [o for o in pr.result.records if o.ok and o.spec.group == (pr.preload, top)]
-    if recs:
-        o = max(recs, key=lambda o: o.fit.q_max)
-        g = pr.result.group(pr.preload, top)
-        theta = _loop_theta(o, g, pr.damping_law)
+    dl = pr.loops
+    if dl is not None:
+        o = dl.largest
         ax = new_axes(None, figsize=(6.0, 4.2))
-        for filt, style in ((False, "-"), (True, "--")):
-            loop = hysteresis_loop(o.signals, o.fit.terms, theta, filtered=filt)
+        for loop, style in ((dl.largest_unfiltered, "-"), (dl.largest_filtered, "--")):
             q = np.append(loop.q, loop.q[:1])
             m = np.append(loop.measured, loop.measured[:1])
-            ax.plot(q, m, style, lw=1.1, label="filtered" if filt else "unfiltered")
+            ax.plot(q, m, style, lw=1.1, label="filtered" if loop.filtered else "unfiltered")
         ax.set_xlabel("q [m] (modal)")
         ax.set_ylabel("Q - q'' - omega1² q [N] (modal)")
         ax.grid(True, alpha=0.3)
