@@ -531,7 +531,7 @@ def write_backbone_figures(backbones: CampaignBackbones, out_dir) -> list:
     """One PNG per preload (``backbone_<preload>.png``) in ``out_dir``; returns the paths."""
     from pathlib import Path
 
-    from ..report.output import slug
+    from ..report.formatting import slug
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

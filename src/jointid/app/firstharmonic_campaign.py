@@ -297,7 +297,7 @@ class FirstHarmonicCampaignResult:
     def figures(self) -> list:
         """``(file name, caption, figure)`` of each preload: FRFs measured vs re-predicted, backbones."""
         from ..report.firstharmonic_plots import plot_first_harmonic_backbones, plot_level_predictions
-        from ..report.output import slug
+        from ..report.formatting import slug
 
         out = []
         for p in self.preloads:
