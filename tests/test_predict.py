@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -43,7 +44,9 @@ def identified(tmp_path_factory):
 
     root = tmp_path_factory.mktemp("predict")
     camp = simulate_campaign(_config(FITTED), root / "campaign")
-    res = identify_campaign(camp, damping_order=0)
+    with warnings.catch_warnings():  # the per-record k3 of the lowest level is not resolved: expected
+        warnings.simplefilter("ignore")
+        res = identify_campaign(camp, damping_order=0)
     write_results(res, root / "results", figures=False, html=False)
     return root / "results"
 
@@ -162,7 +165,7 @@ def test_modal_force_scaling_of_the_reprediction_and_the_located_peak(handmade):
     assert not p.extrapolated and p.has_peak and not p.amplitude_beyond_fitted
     assert math.isnan(p.peak_q_max_stderr)
     # the measured dwells of this fitted level, as fundamental displacement amplitudes
-    f, A = p.measured
+    _, A = p.measured
     assert A == pytest.approx(np.array([100.0, 300.0]) * 1.6 / (2 * np.pi * np.array([26.0, 27.0])) ** 2, rel=1e-12)
     assert p.summary()["measured_dwells"]["frequency_hz"] == [26.0, 27.0]
     f_true, q_true = _true_peak(1.6, p.peak_frequency_hz - 0.5)
@@ -244,8 +247,6 @@ def test_output_folder_is_never_the_results_folder(handmade, capsys):
 def test_peak_standard_errors_are_calibrated_by_monte_carlo(tmp_path):
     """Over campaigns with independent noise, (predicted - true) / se of the held-out top level's
     peak frequency and amplitude has a spread near 1 (a standard error that means what it says)."""
-    import warnings
-
     from jointid.app.predict import predict_from_results
     from jointid.app.synthesis import simulate_campaign
     from jointid.app.workflow import identify_campaign

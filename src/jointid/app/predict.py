@@ -54,11 +54,29 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import (JointidError, JointidWarning, ManifestError, RecordError, RecordFileNotFoundError)
+from ..errors import (
+    JointidError,
+    JointidWarning,
+    ManifestError,
+    RecordError,
+    RecordFileNotFoundError,
+)
 
-__all__ = ["Prediction", "PredictResult", "load_results", "parse_force_levels", "usable_models", "model_of_entry",
-           "force_scaling", "fitted_force_levels", "measured_dwells", "predict_peak", "predict_level", "predict_from_results",
-           "write_predictions"]
+__all__ = [
+    "PredictResult",
+    "Prediction",
+    "fitted_force_levels",
+    "force_scaling",
+    "load_results",
+    "measured_dwells",
+    "model_of_entry",
+    "parse_force_levels",
+    "predict_from_results",
+    "predict_level",
+    "predict_peak",
+    "usable_models",
+    "write_predictions",
+]
 
 #: Largest continuation step (scaled space of :func:`jointid.simulate.hbm.frequency_response`):
 #: small enough that the chord-length parabola places the peak to about 1e-6 of its value.
@@ -786,27 +804,24 @@ def write_predictions(result: PredictResult, out, inputs=()) -> dict:
             if not preds:
                 continue
             ax = plot_predictions(preds, title=f"preload {p}: predicted response")
-            png = figure_to_png(ax.figure, dpi=120)
-            import matplotlib.pyplot as plt
-
-            plt.close(ax.figure)
+            png = figure_to_png(ax.figure, dpi=120)  # a Figure outside pyplot: nothing to close
             name = f"predict_{slug(p)}.png"
             figs.append((p, name, png))
             atomic_write(tmp / "figures" / name, png)
         paths["figures"] = [tmp / "figures" / n for _, n, _ in figs]
         sections = [Section("Predictions", paragraphs=[
-            f"Source: {result.source}. Each preload's identified model solved by harmonic balance with continuation "
-            "through the folds at the requested force levels; q_max in the modal coordinate; standard errors "
-            "propagated from the model's covariance; 95 % intervals value ± 1.96 se."],
+            (f"Source: {result.source}. Each preload's identified model solved by harmonic balance with continuation "
+             "through the folds at the requested force levels; q_max in the modal coordinate; standard errors "
+             "propagated from the model's covariance; 95 % intervals value ± 1.96 se.")],
             tables=[("Peaks", prediction_rows(result.predictions), None)])]
         warn = [ln for ln in result.lines() if "EXTRAPOLATED" in ln or "warning" in ln or "FAILED" in ln
                 or "no prediction" in ln or "no peak" in ln]
         if warn:
             sections.append(Section("Warnings", paragraphs=warn))
         for p, name, png in figs:
-            sections.append(Section(f"Preload {p}", figures=[(f"predicted q_max against frequency, preload {p} "
-                                                             "(dashed: unstable; markers: peaks with 95 % intervals)",
-                                                             png)]))
+            caption = (f"predicted q_max against frequency, preload {p} (dashed: unstable; crosses: peaks with "
+                       "95 % intervals; circles: measured dwells of a fitted level, fundamental amplitude)")
+            sections.append(Section(f"Preload {p}", figures=[(caption, png)]))
         sections.append(Section("Force scaling", paragraphs=[ln for ln in result.lines()[1:]
                                                               if "per unit of force level" in ln]))
         write_html(tmp / "report.html", "jointid: predicted responses", sections,
