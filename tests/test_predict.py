@@ -168,6 +168,8 @@ def test_modal_force_scaling_of_the_reprediction_and_the_located_peak(handmade):
     _, A = p.measured
     assert A == pytest.approx(np.array([100.0, 300.0]) * 1.6 / (2 * np.pi * np.array([26.0, 27.0])) ** 2, rel=1e-12)
     assert p.summary()["measured_dwells"]["frequency_hz"] == [26.0, 27.0]
+    chk = p.time_check  # the peak point solved again by shooting on a time integration
+    assert chk["error"] is None and abs(chk["relative_difference"]) < 1e-5
     f_true, q_true = _true_peak(1.6, p.peak_frequency_hz - 0.5)
     assert p.peak_frequency_hz == pytest.approx(f_true, rel=2e-6)
     assert p.peak_q_max == pytest.approx(q_true, rel=2e-6)
@@ -324,3 +326,16 @@ def test_a_damping_law_that_feeds_energy_in_at_the_peak_is_named():
     entry["parameters"][-1] = -1.0  # positive at the peak: no such note
     p = predict_level(entry, 1.0, fitted_levels=(0.5,), uncertainty=False)
     assert not any("not physical" in n for n in p.notes)
+
+
+def test_too_few_harmonics_are_caught_by_the_time_integration_check(handmade):
+    from jointid.app.predict import load_results, predict_level
+
+    entry = load_results(handmade)[0]["models"][0]
+    p = predict_level(entry, 3.0, n_harmonics=1, uncertainty=False)
+    # one harmonic puts the peak past the true fold: shooting finds no orbit there (or another q_max)
+    chk = p.time_check
+    assert chk["error"] is not None or abs(chk["relative_difference"]) > 1e-3
+    assert any("--harmonics" in n for n in p.notes)
+    p = predict_level(entry, 3.0, n_harmonics=5, uncertainty=False)
+    assert abs(p.time_check["relative_difference"]) < 1e-5 and not any("--harmonics" in n for n in p.notes)

@@ -37,6 +37,12 @@ Flags
     zero or negative at the peak amplitude is a warning.  A prediction that fails (no
     steady state) is reported with its error and the others go on.
 
+Time-integration check
+    The computed curve point at the peak is solved again by shooting on a time integration
+    (:func:`jointid.simulate.timeint.periodic_orbit`, independent of the harmonic balance):
+    ``time_integration_check`` holds both ``q_max``; a difference above 0.1 % is a warning
+    to give more harmonics.
+
 Measured dwells
     At a force level the model was fitted on, the measured dwells of that level (from the
     re-prediction in the results) are carried along as fundamental amplitudes
@@ -396,6 +402,7 @@ class Prediction:
     error: str | None = None
     model: object = field(default=None, repr=False)
     measured: tuple | None = None  # (frequency_hz, fundamental amplitude) of the measured dwells at this level
+    time_check: dict | None = None  # the curve point at the peak solved again by time integration (shooting)
 
     def __post_init__(self):
         for name in ("frequency_hz", "q_max", "stable"):
@@ -436,6 +443,7 @@ class Prediction:
                       "stable": [bool(s) for s in self.stable]},
             "warnings": list(self.notes),
             "error": self.error,
+            "time_integration_check": self.time_check,
             "measured_dwells": None if self.measured is None else {
                 "frequency_hz": [float(v) for v in self.measured[0]],
                 "amplitude": [float(v) for v in self.measured[1]],
@@ -554,6 +562,28 @@ def _peak_stderr(entry, Q, span, n_harmonics, response, peak):
     return float(np.sqrt(max(V[0, 0], 0.0))), float(np.sqrt(max(V[1, 1], 0.0))), None
 
 
+#: Relative difference of q_max between harmonic balance and time integration above which the
+#: harmonics are too few.
+TIME_CHECK_RTOL = 1e-3
+
+
+def _time_check(model, Q, state) -> dict:
+    """The curve point at the peak solved again by shooting on a time integration
+    (:func:`jointid.simulate.timeint.periodic_orbit`, started from the point): its ``q_max``
+    against the harmonic balance's."""
+    from ..simulate.timeint import periodic_orbit
+
+    out = {"frequency_hz": float(state.omega / (2 * np.pi)), "q_max_harmonic_balance": float(state.q_max)}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointidWarning)
+            orbit = periodic_orbit(model, state.omega, Q, guess=state)
+    except (JointidError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        return {**out, "q_max_time_integration": None, "relative_difference": None, "error": str(exc)}
+    return {**out, "q_max_time_integration": float(orbit.q_max),
+            "relative_difference": float(orbit.q_max / state.q_max - 1.0), "error": None}
+
+
 def _negative_damping(model, lib, state) -> list:
     """A note per damping term with an amplitude law that feeds energy in at this steady state
     (its coefficient is negative there and its work per cycle is more than 0.1 % of the
@@ -639,6 +669,13 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
                              + ("the amplitude laws are extrapolated" if model.amplitude_laws
                                 else "beyond the amplitudes the model was fitted on"))
         notes += _negative_damping(model, library(entry["terms"]), r.state(peak[2]))
+        check = _time_check(model, Q, r.state(peak[2]))
+        if check["error"]:
+            notes.append(f"time integration finds no periodic orbit at the peak ({check['error']}): the harmonic "
+                         f"balance with {n_harmonics} harmonics may be truncated (--harmonics)")
+        elif abs(check["relative_difference"]) > TIME_CHECK_RTOL:
+            notes.append(f"at the peak, time integration gives q_max {100 * check['relative_difference']:+.2g} % "
+                         f"from the harmonic balance with {n_harmonics} harmonics: give more (--harmonics)")
         if uncertainty:
             try:
                 sf, sq, why = _peak_stderr(entry, Q, span, n_harmonics, r, peak)
@@ -647,6 +684,7 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
             if why:
                 notes.append(why)
     return Prediction(frequency_hz=f_hz, q_max=np.asarray(r.q_max, float), stable=stable, folds_hz=folds,
+                      time_check=None if peak is None else check,
                       peak_frequency_hz=pf, peak_q_max=pq, peak_frequency_hz_stderr=sf, peak_q_max_stderr=sq,
                       amplitude_beyond_fitted=beyond, frequency_range_hz=tuple(float(v) for v in span),
                       notes=tuple(notes), model=model, **base)
