@@ -139,6 +139,7 @@ def test_peaks_at_held_out_and_higher_level_match_the_true_model(identified, tmp
         assert not np.any(np.isclose(f, p.peak_frequency_hz, rtol=0, atol=1e-12))
         assert p.stable[int(np.argmax(q))]
         assert len(p.folds_hz) == 2 and p.peak_frequency_hz < max(p.folds_hz)
+        assert abs(p.time_check["relative_difference"]) < 1e-4  # a time integration agrees at the peak
     paths = write_predictions(res, tmp_path / "out")
     d = json.loads(paths["results"].read_text())
     assert d["kind"] == "predict" and len(d["predictions"]) == 2

@@ -58,6 +58,7 @@ EPILOG = """examples:
   jointid simulate config.toml --out camp    # write a simulated campaign
   jointid identify camp --out results        # identify it: results.json, CSV tables, PNG figures
   jointid backbone results                   # omega(a), zeta(a) of a saved result, into results-backbone/
+  jointid predict results --force-levels 1,2,3.5 --out pred   # the identified model at new force levels
   jointid study plan.toml --out study --jobs 2   # Monte Carlo study: bias, RMSE, std(z), coverage
   jointid modal structure.toml --out modal   # FE modes, updating report, mode-shape plots
   jointid modal structure.toml --frf random.uff --response accel_42   # + modal fit of H1, trusted peaks

@@ -783,6 +783,8 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
         from .backbones import check_results_for_backbones
 
         source = "results"
+        if "models" not in results:
+            results = _identifications(results)
         check_results_for_backbones(results, source)
     else:
         results, file = load_results(results)
