@@ -827,7 +827,7 @@ def write_predictions(result: PredictResult, out, inputs=()) -> dict:
     from ..io.outputset import new_run_id, output_set
     from ..io.results import atomic_write, write_json
     from ..report.html import Section, figure_to_png, page_meta, write_html
-    from ..report.output import slug
+    from ..report.formatting import slug
     from ..report.predict_plots import plot_predictions, prediction_rows
 
     final = Path(out)
