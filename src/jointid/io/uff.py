@@ -401,6 +401,8 @@ def read_uff(
             raise RecordError(
                 f"{where(path, record=i)}cannot read dataset 58 (corrupt or truncated): {exc}"
             ) from exc
+        if isinstance(d, dict) and int(d.get("abscissa_spacing", 1)) == 1:
+            d.pop("x", None)  # an even abscissa is t0 + n dt: its array would only double a long record
         dsets.append((i, d))
 
     skipped = [f"{i}: type {t}" for i, t in enumerate(types) if t != 58]
@@ -476,6 +478,8 @@ def read_uff(
     binary_any = False
     for name, (i, d) in chosen:
         values = np.asarray(d["data"], dtype=np.float64)
+        if values.flags.owndata:
+            values.setflags(write=False)  # our own array: the record keeps it without a copy
         if int(d.get("abscissa_spacing", 1)) == 1:
             t0, dt = _read_time_base(path, d, name)
         else:
@@ -505,6 +509,7 @@ def read_uff(
     assert ref is not None
     _, t0, dt, n = ref
     time = t0 + np.arange(n) * dt
+    time.setflags(write=False)  # kept by the record without a copy
     return Channels(
         time=time,
         data=data,
