@@ -116,3 +116,81 @@ def test_the_corpus_bases_import(tmp_path, capsys):
                                      '[[record]]\nfile = "fh.csv"\n' + FH + f"channels = {FH_MAP}\n")
     code, out, _ = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "out"], capsys)
     assert code == 0 and "2 records written" in out
+
+
+# ------------------------------------------------------------------------------ --out symlink loops
+def _sim_toml(folder):
+    text = ('[campaign]\nname = "x"\n[[model]]\npreload = "p"\nterms = "q + -q^3 + q\'"\nomega1 = 170.0\n'
+            'coefficients = { k3 = 5e6 }\namplitude_laws = { c = [0.08] }\n[excitation]\nforce_levels = [1.0]\n'
+            'omega_start = 165.0\nomega_stop = 175.0\nn_frequencies = 2\n[acquisition]\nfs = 2000.0\nperiods = 5.0\n')
+    (folder / "s.toml").write_text(text)
+    return folder / "s.toml"
+
+
+# a --out that is a link to itself was a traceback (FileExistsError / too many levels of links) in these
+# commands; each must refuse it before any work
+@pytest.mark.parametrize("argv", [
+    lambda d: ["simulate", _sim_toml(d), "--out", d / "out", "--quiet"],
+    lambda d: ["example", "--out", d / "out"],
+    lambda d: ["example", "--copy", "all", "--to", d / "out"],
+    lambda d: ["backbone", d / "results.json", "--out", d / "out"],
+    lambda d: ["modal", _sim_toml(d), "--out", d / "out"],
+], ids=["simulate", "example", "example_copy", "backbone", "modal"])
+def test_out_symlink_loop_is_refused(tmp_path, capsys, argv):
+    import os
+
+    (tmp_path / "results.json").write_text("{}")
+    os.symlink(tmp_path / "out", tmp_path / "out")
+    code, _, err = _run(argv(tmp_path), capsys)
+    assert code == 2 and "symbolic link to nothing (or a loop of links)" in err, err
+
+
+# ------------------------------------------------------------------------------ first-harmonic lines of noise
+def _fh_campaign(folder, noisy_level):
+    rng = np.random.default_rng(4)
+    folder.mkdir()
+    f = np.linspace(18, 22, 21)
+    w, w0 = 2 * np.pi * f, 2 * np.pi * 20
+    lines = ['[campaign]\nname = "fh"\n']
+    for i, level in enumerate((1.0, 2.0)):
+        H = -(w**2) / (w0**2 - w**2 + 2j * 0.02 * w0 * w)
+        if i == noisy_level:
+            H = np.abs(rng.standard_normal(f.size)) * np.exp(1j * rng.uniform(-3, 3, f.size))
+        np.savetxt(folder / f"fh{i}.csv", np.column_stack([f, np.full(f.size, level), level * np.abs(H),
+                                                           np.angle(H)]),
+                   delimiter=",", header="frequency_hz,force,accel,accel_phase", comments="")
+        lines.append(f'[[record]]\nfile = "fh{i}.csv"\npreload = "p"\nforce_level = {level}\n'
+                     'excitation = "first-harmonic"\n')
+    (folder / "campaign.toml").write_text("".join(lines))
+    return folder
+
+
+def test_first_harmonic_lines_of_noise_are_not_identified(tmp_path, capsys):
+    """A level of noise was fitted for minutes (every candidate law at its evaluation limit) and the run
+    ended with exit 0 and no word; now the preload is refused at once and the run says so (exit 1)."""
+    import json
+    import time
+
+    t0 = time.perf_counter()
+    code, _, err = _run(["identify", _fh_campaign(tmp_path / "c", 0), "--out", tmp_path / "r", "--no-figures",
+                         "--quiet"], capsys)
+    assert time.perf_counter() - t0 < 30
+    assert code == 1 and "preload p: not identified" in err and "level 1.0 scatter by" in err, err
+    (p,) = json.loads((tmp_path / "r" / "results.json").read_text())["first_harmonic"]
+    assert p["fit"] is None and "no resonance of one mode" in p["errors"]["fit"]
+
+
+def test_linear_mode_scatter_separates_a_resonance_from_noise():
+    from jointid.app.firstharmonic_campaign import MAX_LINEAR_SCATTER, linear_mode_scatter
+    from jointid.identify.firstharmonic import FirstHarmonicLevel
+    from jointid.io.campaign import load_campaign
+    from jointid.io.firsth import read_first_harmonic_record
+
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as d:
+        camp = load_campaign(_fh_campaign(Path(d) / "c", 0))
+        noise, clean = (linear_mode_scatter(FirstHarmonicLevel.from_record(read_first_harmonic_record(s), "x"))
+                        for s in camp.records)
+    assert clean < 1e-6 and noise > 1.5 * MAX_LINEAR_SCATTER

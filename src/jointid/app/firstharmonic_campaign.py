@@ -392,6 +392,59 @@ class FirstHarmonicCampaignResult:
         return paths
 
 
+#: Largest relative scatter of a level's accelerance about one linear mode for lines taken as a
+#: resonance (the strongly nonlinear Brake-Reuss beam, level by level: 0.08 to 0.16; lines of pure
+#: noise: about 0.9).  Beyond it the laws are not chosen or fitted: the fit would return numbers
+#: (or search for minutes) on lines that hold no mode.
+MAX_LINEAR_SCATTER = 0.5
+
+
+def linear_mode_scatter(level) -> float:
+    """Relative RMS misfit of one level's accelerance by one linear mode ``-w^2 m / (a - w^2 + i c w)``.
+
+    The mode starts from one linear least-squares step (the equation multiplied by its
+    denominator, each line weighted by ``1 / |H|``) and is refined, with a complex constant for
+    the other modes and a complex modal constant, by a short nonlinear least-squares fit.
+    """
+    w = 2 * np.pi * np.asarray(level.frequency_hz, float)
+    H = np.asarray(level.frf, complex)
+    if w.size < 3:
+        return 0.0
+    g = 1.0 / np.abs(H)
+    # H a + i w H c + w^2 m = w^2 H, real and imaginary parts, unknowns (a, c, m)
+    M = np.column_stack([H, 1j * w * H, w**2 + 0j]) * g[:, None]
+    rhs = w**2 * H * g
+    A = np.vstack([M.real, M.imag])
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    x = np.linalg.lstsq(A / scale, np.concatenate([rhs.real, rhs.imag]), rcond=None)[0] / scale
+    from scipy.optimize import least_squares
+
+    def resid(p):  # the mode and a constant residual term, relative to |H| (a few dozen evaluations)
+        a, c, mr, mi, rr, ri = p
+        r = (-(w**2) * (mr + 1j * mi) / (a - w**2 + 1j * c * w) + (rr + 1j * ri) - H) * g
+        return np.concatenate([r.real, r.imag])
+
+    x0 = np.array([x[0], x[1], x[2], 0.0, 0.0, 0.0])
+    with np.errstate(all="ignore"):
+        if not np.all(np.isfinite(resid(x0))):
+            return np.inf
+        sol = least_squares(resid, x0, x_scale="jac", max_nfev=200)
+    r = sol.fun
+    return float(np.sqrt(2 * np.mean(r**2))) if np.all(np.isfinite(r)) else np.inf
+
+
+def _check_one_resonance(levels) -> None:
+    """Raise an IdentificationError when a level's lines show no resonance of one mode."""
+    bad = [(lv.label, x) for lv in levels if not (x := linear_mode_scatter(lv)) <= MAX_LINEAR_SCATTER]
+    if bad:
+        raise IdentificationError(
+            "the lines of " + ", ".join(f"level {label} scatter by {x:.3g}" for label, x in bad) +
+            f" of the accelerance about one linear mode (at most {MAX_LINEAR_SCATTER:g} is taken as a resonance); "
+            "they show no resonance of one mode (noise, a response away from the driving point, or the wrong "
+            "columns), so the preload is not identified")
+
+
 def _label(spec):
     if spec.force_level is not None:
         return str(spec.force_level)
@@ -457,6 +510,7 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
             continue
         chosen = tuple(laws) if laws else None
         try:
+            _check_one_resonance(levels)
             if chosen is None:
                 if len(levels) >= 2:
                     sel = select_laws(levels, candidates)

@@ -26,4 +26,12 @@ def ringdown_problem_lines(backbones) -> list:
 def problem_lines(result) -> list:
     """Broadband and ring-down problems of a :class:`~jointid.app.workflow.CampaignResult` (empty when none)."""
     return broadband_problem_lines(getattr(result, "broadband", ())) + ringdown_problem_lines(
-        getattr(result, "backbones", None))
+        getattr(result, "backbones", None)) + first_harmonic_problem_lines(result)
+
+
+def first_harmonic_problem_lines(result) -> list:
+    """One line per preload of a first-harmonic campaign whose model could not be fitted."""
+    if not hasattr(result, "write_set"):  # only a first-harmonic result writes its own set
+        return []
+    return [f"preload {p.preload}: not identified: {p.errors['fit']}" for p in getattr(result, "preloads", ())
+            if "fit" in (getattr(p, "errors", None) or {})]

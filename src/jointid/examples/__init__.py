@@ -71,6 +71,8 @@ def copy_examples(names, to=DEFAULT_FOLDER) -> list:
         raise JointidError(f"unknown example file(s) {', '.join(map(repr, unknown))}; "
                            f"known: {', '.join(known)} or 'all'")
     folder = Path(to)
+    if folder.is_symlink() and not folder.exists():
+        raise OutputError(f"{folder}: is a symbolic link to nothing (or a loop of links); give a real folder")
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"{folder}: a folder was expected for the example files, got an existing file")
     present = [folder / n for n in dict.fromkeys(names) if (folder / n).exists() or (folder / n).is_symlink()]

@@ -225,6 +225,8 @@ def check_command_output(command: str, out, inputs=()) -> Path:
     writable folder that is not an output set.
     """
     if command not in _COMMANDS:  # writes into the folder: never into an output set (it would mix with it)
+        if Path(out).is_symlink() and not Path(out).exists():
+            raise OutputError(f"{out}: is a symbolic link to nothing (or a loop of links); give a real folder")
         _check_writable(out, replace_set=False)
         marker = read_marker(out) if Path(out).is_dir() else None
         if marker is not None:
