@@ -357,11 +357,13 @@ class CondensedHB:
         harmonic index of their eigenvectors (large: an eigenvalue of the truncation).  Rigid-body
         modes, which the joints do not move, are left out (their exponents are zero).
 
-        Checked against time integrations on a chain with a Jenkins joint and a cubic spring
-        (stable and unstable points of the upper branch, the branch between folds).  For laws of
-        many sliders (Iwan) the periodic-map Jacobian is not the linearisation of the transient
-        motion, and positive growth rates were found on a lap joint where no time integration
-        has confirmed them: there the result is not yet trustworthy.
+        Checked against time integrations on a chain with a cubic spring and a Jenkins joint that
+        barely slips (stable and unstable points of the upper branch, the branch between folds).
+        Where sliders slip much (the same chain with ``Fs`` halved; the Iwan lap joint of
+        docs/formats.md) it reports positive growth rates over whole branches that no time
+        integration has confirmed: the periodic-map Jacobian of a slider law is not the
+        linearisation of the transient motion.  For slipping slider laws the result is not
+        trustworthy yet.
         """
         H = point.n_harmonics
         n = n_coefficients(H)
