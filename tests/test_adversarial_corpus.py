@@ -194,3 +194,23 @@ def test_linear_mode_scatter_separates_a_resonance_from_noise():
         noise, clean = (linear_mode_scatter(FirstHarmonicLevel.from_record(read_first_harmonic_record(s), "x"))
                         for s in camp.records)
     assert clean < 1e-6 and noise > 1.5 * MAX_LINEAR_SCATTER
+
+
+# ------------------------------------------------------------------------------ public-data on damaged files
+def test_public_data_with_a_damaged_mat_file_names_it(tmp_path, capsys, monkeypatch):
+    """A damaged data file was a traceback; now it fails its example, named, and the others still run."""
+    import shutil
+    from pathlib import Path
+
+    from jointid.io.datasets import shared_data_dir
+
+    real = shared_data_dir()
+    sh = tmp_path / "sh"
+    (sh / "silverbox_multilevel_noel").mkdir(parents=True)
+    for f in Path(real / "silverbox_multilevel_noel").glob("*.mat"):
+        (sh / "silverbox_multilevel_noel" / f.name).write_bytes(b"MATLAB 5.0 MAT-file" + bytes(200))
+    shutil.copytree(real / "silverbox", sh / "silverbox")
+    monkeypatch.setenv("JOINTID_SHARED_DATA", str(sh))
+    code, _, err = _run(["public-data", "--only", "silverbox", "--out", tmp_path / "out"], capsys)
+    assert code == 2 and "silverbox: failed:" in err and "SNJP_" in err and "no example could be run" in err, err
+    assert not (tmp_path / "out").exists()

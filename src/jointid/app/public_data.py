@@ -744,16 +744,28 @@ def main(argv=None) -> int:
 
     runs = {"silverbox": silverbox_multilevel, "benchmark": silverbox_benchmark, "unesp": unesp_sine_dwells,
             "f16": f16_restoring_force, "brb": brb_example}
-    results = {}
+    from ..errors import JointidError
+
+    results, failed = {}, {}
     try:
         for name, func in runs.items():
             if args.only and name not in args.only:
                 continue
-            results[name] = func()
+            try:
+                results[name] = func()
+            except RecordFileNotFoundError:
+                raise
+            except JointidError as exc:  # a damaged data file fails its example only
+                failed[name] = str(exc)
+                print(f"jointid public-data: {name}: failed: {exc}", file=sys.stderr)
+                continue
             print(results[name].report())
             print()
     except RecordFileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if not results:
+        print("jointid public-data: error: no example could be run", file=sys.stderr)
         return 2
     if args.out is not None:
         import matplotlib.pyplot as plt
@@ -775,7 +787,7 @@ def main(argv=None) -> int:
                 if hasattr(r, "write"):
                     r.write(tmp / k)
         print(f"report.html, figures and results.json written to {args.out}")
-    return 0
+    return 1 if failed else 0
 
 
 #: Section title and figure caption of each example in the HTML report; an example not
