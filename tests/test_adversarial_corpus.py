@@ -214,3 +214,21 @@ def test_public_data_with_a_damaged_mat_file_names_it(tmp_path, capsys, monkeypa
     code, _, err = _run(["public-data", "--only", "silverbox", "--out", tmp_path / "out"], capsys)
     assert code == 2 and "silverbox: failed:" in err and "SNJP_" in err and "no example could be run" in err, err
     assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------------------ modal --frf
+def test_modal_nperseg_beyond_half_the_record_is_refused(tmp_path, capsys, monkeypatch):
+    """--nperseg 1e9 was clipped to one segment (coherence 1 whatever the data) and the fit ran past minutes."""
+    from test_frf_modal_cli import STRUCTURE
+
+    from jointid.io.campaign import write_csv_record
+
+    monkeypatch.chdir(tmp_path)
+    rng = np.random.default_rng(3)
+    n = 4096
+    (tmp_path / "s.toml").write_text(STRUCTURE.format(x_f=0.05))
+    write_csv_record(tmp_path / "r.csv", np.arange(n) / 1024.0,
+                     {"force": rng.standard_normal(n), "accel_42": rng.standard_normal(n)})
+    code, _, err = _run(["modal", tmp_path / "s.toml", "--frf", tmp_path / "r.csv", "--response", "accel_42",
+                         "--nperseg", "1000000000", "--out", tmp_path / "out"], capsys)
+    assert code == 2 and "r.csv: --nperseg 1000000000 leaves fewer than two averages" in err and "2048" in err, err

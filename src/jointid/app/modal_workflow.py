@@ -124,6 +124,10 @@ def modal_workflow(structure_file, *, frf=None, response=None, modes=3, bands=No
     spec = RecordSpec(0, str(frf), frf.resolve(), None, None, None)
     rec = read_record(spec, required=("time", structure.force_column, column))
     fs = 1.0 / float(np.mean(np.diff(rec.time)))
+    if nperseg is not None and 2 * nperseg > rec.time.size:  # one segment: coherence 1 whatever the data
+        raise IdentificationError(f"{frf}: --nperseg {nperseg} leaves fewer than two averages in the record's "
+                                  f"{rec.time.size} samples (H1 and its coherence need several); give at most "
+                                  f"{rec.time.size // 2}")
     try:
         h1 = h1_estimate(rec.channels[structure.force_column], rec.channels[column], fs, nperseg=nperseg)
         fit = fit_modes(h1, None if bands else modes, bands=bands, f_range=f_range, max_order=order,
