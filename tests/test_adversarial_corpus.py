@@ -232,3 +232,30 @@ def test_modal_nperseg_beyond_half_the_record_is_refused(tmp_path, capsys, monke
     code, _, err = _run(["modal", tmp_path / "s.toml", "--frf", tmp_path / "r.csv", "--response", "accel_42",
                          "--nperseg", "1000000000", "--out", tmp_path / "out"], capsys)
     assert code == 2 and "r.csv: --nperseg 1000000000 leaves fewer than two averages" in err and "2048" in err, err
+
+
+# ------------------------------------------------------------------------------ ring-down of absurd amplitude
+def test_a_ringdown_whose_fit_breaks_fails_alone(tmp_path, capsys):
+    """A ring-down of amplitude 1e300 broke the decay fit (LinAlgError) and took every backbone of the
+    campaign with it, exit 0; now it fails itself, named, and the run says so (exit 1)."""
+    import json
+
+    from jointid.app.synthesis import load_simulation_config, simulate_campaign
+    from jointid.io.campaign import write_csv_record
+
+    cfg = {"campaign": {"name": "rd"},
+           "model": [{"preload": "p", "terms": "q + -q^3 + q'", "omega1": 170.0, "coefficients": {"k3": 5e6},
+                      "amplitude_laws": {"c": [0.08, 70.0, 1e4]}}],
+           "excitation": {"force_levels": [1.0], "omega_start": 165.0, "omega_stop": 175.0, "n_frequencies": 4},
+           "acquisition": {"fs": 2000.0, "periods": 10.0, "noise": 0.01, "seed": 1}}
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "c")
+    t = np.arange(8000) / 2000.0
+    write_csv_record(camp / "rd_huge.csv", t, {"accel": 1e300 * np.exp(-t) * np.sin(170.0 * t)})
+    with open(camp / "campaign.toml", "a", encoding="utf-8") as fh:
+        fh.write('\n[[record]]\nfile = "rd_huge.csv"\npreload = "p"\nforce_level = 1.0\nexcitation = "ringdown"\n')
+    code, _, err = _run(["identify", camp, "--out", tmp_path / "r", "--no-figures", "--no-reprediction", "--quiet"],
+                        capsys)
+    assert code == 1 and "rd_huge.csv" in err and "not a usable free decay" in err, err
+    bb = json.loads((tmp_path / "r" / "results.json").read_text())["backbones"]
+    assert bb["error"] is None and len(bb["preloads"]) == 1
+    assert bb["preloads"][0]["model"] is not None  # the model's backbone is kept

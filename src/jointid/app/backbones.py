@@ -325,6 +325,9 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
                 rds.append(d.backbone(label=f"{s.file}"))
             except JointidError as exc:
                 errors[f"record {s.index}"] = str(exc)
+            except (np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:  # fails this record only
+                errors[f"record {s.index}"] = (f"{where(s.file, s.index)}not a usable free decay: the decay fit "
+                                               f"failed ({type(exc).__name__}: {exc})")
         pb = PreloadBackbones(p, model_bb, stepped, res, tuple(rds), {}, errors)
         if joint_laws and structure is not None and structure.modes is not None:
             meas = pb.measured()
