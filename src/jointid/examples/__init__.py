@@ -20,7 +20,10 @@ __all__ = ["example_files", "copy_examples", "DEFAULT_FOLDER"]
 #: Where :func:`copy_examples` puts the files by default (the documents' ``examples/NAME``).
 DEFAULT_FOLDER = "examples"
 #: Kinds of example file: name suffix -> what it is read by.
-SUFFIXES = (".toml",)
+SUFFIXES = (".toml", ".npz")
+#: What a binary example file holds (a text file says it in its leading comment).
+DATA_FILES = {"lap_joint.npz": "Mass and stiffness matrices (M, K, dof_names) of the free-free two-beam lap joint, "
+                               "the structure model of docs/formats.md (jointid predict MODEL.toml)."}
 
 
 def _first_sentence(text: str) -> str:
@@ -42,7 +45,7 @@ def example_files() -> dict:
     out = {}
     for entry in sorted(root.iterdir(), key=lambda e: e.name):
         if entry.is_file() and entry.name.endswith(SUFFIXES):
-            out[entry.name] = _first_sentence(entry.read_text(encoding="utf-8"))
+            out[entry.name] = DATA_FILES.get(entry.name) or _first_sentence(entry.read_text(encoding="utf-8"))
     return out
 
 
