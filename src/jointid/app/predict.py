@@ -210,24 +210,12 @@ def _orders(entry):
 def model_of_entry(entry, theta=None):
     """The :class:`~jointid.simulate.model.SingleModeModel` of a ``models`` entry (parameters ``theta``
     in its ``parameters`` order instead of the fitted ones when given)."""
-    from ..identify.model import law_size
-    from ..identify.powerlaw import PowerLaw, is_power
-    from ..simulate.model import SingleModeModel
+    from .heldout_scoring import single_mode_model
 
     lib, orders = _orders(entry)
     theta = np.asarray(entry["parameters"] if theta is None else theta, float)
     # the parameters run term by term, an amplitude law's coefficients in place of its term's value
-    coefs, laws, k = [], {}, 0
-    for t, L in zip(lib, orders):
-        n = law_size(L)
-        if n == 1:
-            coefs.append(float(theta[k]))
-        else:
-            coefs.append(0.0)
-            laws[t.coefficient] = (PowerLaw(*theta[k:k + 3]) if is_power(L)
-                                   else tuple(float(x) for x in theta[k:k + n]))
-        k += n
-    return SingleModeModel(lib, tuple(coefs), laws)
+    return single_mode_model(lib, orders, theta)
 
 
 def _numeric(v) -> bool:
