@@ -573,6 +573,13 @@ def _fold_scores(level_preds):
     return out
 
 
+def _no_prediction(preds, flags, test, lev, exc):
+    """Record a held-out level that could not be predicted: an infinite score and a flag naming the level."""
+    preds.append(LevelPrediction(np.full(len(test), np.inf), np.zeros(len(test), int), False, float("nan"),
+                                 float("nan"), float("nan"), float("inf"), True))
+    flags.append(f"held out at force level {lev}: no prediction ({exc})")
+
+
 def _predict_level(fh, space, test, fitted_amax, predictor, cand, fitted):
     """Held-out prediction of one level; ``(LevelPrediction, flags)``."""
     recs = [space.records[i] for i in test]
@@ -638,9 +645,7 @@ def _score(space, cand, levels_of, level_values, criterion_only, n_harmonics, cv
                 preds.append(lp)
                 flags += fl
             except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-                preds.append(LevelPrediction(np.full(len(test), np.inf), np.zeros(len(test), int), False, float("nan"),
-                                             float("nan"), float("nan"), float("inf"), True))
-                flags.append(f"held out at force level {lev}: no prediction ({exc})")
+                _no_prediction(preds, flags, test, lev, exc)
     e = np.asarray(per_record, float)
     cvf = float(np.mean(e))
     cvse = float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 and np.all(np.isfinite(e)) else float("nan")
@@ -689,9 +694,7 @@ def _score_hysteretic(space, cand, levels_of, level_values, criterion_only):
             preds.append(lp)
             flags += fl
         except (JointidError, ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-            preds.append(LevelPrediction(np.full(len(test), np.inf), np.zeros(len(test), int), False, float("nan"),
-                                         float("nan"), float("nan"), float("inf"), True))
-            flags.append(f"held out at force level {lev}: no prediction ({exc})")
+            _no_prediction(preds, flags, test, lev, exc)
     kw.update(_fold_scores(preds))
     return CandidateScore(cand, flags=tuple(dict.fromkeys(flags)), **kw)
 
