@@ -40,7 +40,7 @@ import numpy as np
 
 from .._blas import single_threaded
 from ..errors import ConvergenceError, StructureError
-from ..simulate.structure_hb import CondensedHB
+from ..simulate.structure_hb import CondensedHB, HBPoint
 from ..simulate.structure_hb import to_complex as _complex
 from .iwan import JointLaw
 
@@ -127,44 +127,21 @@ class _RigLawAFT:
 
 
 @dataclass(frozen=True, eq=False)
-class RigSteadyState:
+class RigSteadyState(HBPoint):
     """A periodic steady state of the reduced model found by harmonic balance.
+
+    The engine's :class:`~jointid.simulate.structure_hb.HBPoint` (``omega`` [rad/s], the harmonic
+    coefficients ``force`` [N], ``modal``, ``joint`` (relative motion ``u``) and ``joint_force``
+    (``f - K_T u``), ``iterations``, ``residual_norm``, ``frequency_hz``, ``n_harmonics``) with the
+    joint laws' hysteretic states.
 
     Attributes
     ----------
-    omega : float
-        Excitation frequency [rad/s].
-    force : ndarray, shape (2H + 1,)
-        Harmonic coefficients of the applied force ``F(t)`` [N].
-    modal : ndarray, shape (n_modes, 2H + 1)
-        Harmonic coefficients of the modal coordinates ``eta``.
-    joint : ndarray, shape (n_joints, 2H + 1)
-        Harmonic coefficients of the joint relative motion ``u``.
-    joint_force : ndarray, shape (n_joints, 2H + 1)
-        Harmonic coefficients of the nonlinear joint force ``f - K_T u``.
     joint_state : tuple of ndarray
         Hysteretic state of each joint law at ``t = 0`` on the periodic orbit.
-    iterations : int
-    residual_norm : float
-        Relative norm of the harmonic-balance residual.
     """
 
-    omega: float
-    force: np.ndarray
-    modal: np.ndarray
-    joint: np.ndarray
-    joint_force: np.ndarray
     joint_state: tuple
-    iterations: int
-    residual_norm: float
-
-    @property
-    def frequency_hz(self) -> float:
-        return self.omega / (2 * np.pi)
-
-    @property
-    def n_harmonics(self) -> int:
-        return (self.modal.shape[-1] - 1) // 2
 
     def modal_at(self, t, derivative=0):
         """Modal coordinates (or derivatives) at times ``t``: ``(n_modes, n_t)``."""
@@ -367,7 +344,8 @@ class ReducedModel:
         except ConvergenceError as exc:
             raise ConvergenceError(f"rig {exc}") from None
         states = tuple(law.state for law in laws)
-        return RigSteadyState(p.omega, p.force, p.modal, p.joint, p.joint_force, states, p.iterations, p.residual_norm)
+        return RigSteadyState(omega=p.omega, force=p.force, modal=p.modal, joint=p.joint, joint_force=p.joint_force,
+                              iterations=p.iterations, residual_norm=p.residual_norm, joint_state=states)
 
     @single_threaded
     def sweep(self, omegas, force, n_harmonics=9, **kw):
