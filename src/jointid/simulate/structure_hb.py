@@ -48,8 +48,7 @@ from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, ConvergenceWarning, StructureError
 from ..numerics.aft import aft_basis
-from .hbm.continuation import CONT_HISTORY, _Arclength, _locate_fold
-from .hbm.kernels import _extrapolate_one
+from .hbm.continuation import _accept, _Arclength, _locate_fold, _step
 
 __all__ = ["CondensedHB", "HBPoint", "HBCurve", "to_complex", "to_real", "default_n_time"]
 
@@ -550,13 +549,9 @@ class CondensedHB:
                     f"continuation stopped after {max_steps} steps at {pts[-1].frequency_hz:.6g} Hz before the end "
                     f"of the range; returning the partial curve", ConvergenceWarning, stacklevel=3)
                 break
-            yp = _extrapolate_one(hist_s, hist_y, hist_s[-1] + ds) if len(hist_y) >= 2 else y + ds * t
-            out = arc.correct(yp, t)
+            out = _step(arc, y, t, ds, hist_s, hist_y, True, cos_max, ds_min)
             if out is not None:
-                y_new, Gy_new, ev_new, its = out
-                t_new = arc.tangent(Gy_new, t)
-                if t_new @ t < cos_max and ds > 1e3 * ds_min:
-                    out = None
+                y_new, t_new, ev_new, its = out
             if out is None:
                 ds *= 0.5
                 if ds < ds_min:
@@ -584,13 +579,8 @@ class CondensedHB:
                 break
             z_new, w_new = arc.split(y_new)
             pts.append(self.point(z_new, w_new, Fc, H, N, ev_new["ev"], its, ev_new["err"]))
-            hist_s = (hist_s + [hist_s[-1] + float(np.linalg.norm(y_new - y))])[-CONT_HISTORY:]
-            hist_y = (hist_y + [y_new])[-CONT_HISTORY:]
+            hist_s, hist_y, ds = _accept(hist_s, hist_y, y, y_new, its, ds, ds_max)
             y, t = y_new, t_new
-            if its <= 2:
-                ds = min(ds * 1.6, ds_max)
-            elif its >= 5:
-                ds *= 0.6
         return HBCurve(tuple(pts), tuple(folds))
 
 

@@ -156,16 +156,9 @@ def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
                 stacklevel=4,
             )
             break
-        if len(hist_y) >= 2 and not problem.closure:
-            yp = _extrapolate_one(hist_s, hist_y, hist_s[-1] + ds)
-        else:
-            yp = y + ds * t
-        out = arc.correct(yp, t)
+        out = _step(arc, y, t, ds, hist_s, hist_y, not problem.closure, cos_max, ds_min)
         if out is not None:
-            y_new, Gy_new, ev_new, its = out
-            t_new = arc.tangent(Gy_new, t)
-            if t_new @ t < cos_max and ds > 1e3 * ds_min:
-                out = None
+            y_new, t_new, ev_new, its = out
         if out is None:
             ds *= 0.5
             if ds < ds_min:
@@ -198,14 +191,41 @@ def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
             break
         z_new, w_new = arc.split(y_new)
         pts.append((w_new, z_new, ev_new, its))
-        hist_s = (hist_s + [hist_s[-1] + float(np.linalg.norm(y_new - y))])[-CONT_HISTORY:]
-        hist_y = (hist_y + [y_new])[-CONT_HISTORY:]
+        hist_s, hist_y, ds = _accept(hist_s, hist_y, y, y_new, its, ds, ds_max)
         y, t = y_new, t_new
-        if its <= 2:
-            ds = min(ds * 1.6, ds_max)
-        elif its >= 5:
-            ds *= 0.6
     return pts, folds
+
+
+def _step(arc, y, t, ds, hist_s, hist_y, extrapolate, cos_max, ds_min):
+    """One predictor-corrector step of length ``ds`` from ``y`` along tangent ``t``.
+
+    The predictor is the cubic through the accepted points ``hist_y`` (``extrapolate`` and two
+    or more points) or the tangent.  ``(y_new, t_new, ev_new, iterations)``, or ``None`` when the
+    corrector fails or the tangent turns by more than ``acos(cos_max)`` on a step above ``1e3 ds_min``.
+    """
+    if extrapolate and len(hist_y) >= 2:
+        yp = _extrapolate_one(hist_s, hist_y, hist_s[-1] + ds)
+    else:
+        yp = y + ds * t
+    out = arc.correct(yp, t)
+    if out is None:
+        return None
+    y_new, Gy_new, ev_new, its = out
+    t_new = arc.tangent(Gy_new, t)
+    if t_new @ t < cos_max and ds > 1e3 * ds_min:
+        return None
+    return y_new, t_new, ev_new, its
+
+
+def _accept(hist_s, hist_y, y, y_new, its, ds, ds_max):
+    """The predictor history after accepting ``y_new`` and the next step length (by corrector iterations)."""
+    hist_s = (hist_s + [hist_s[-1] + float(np.linalg.norm(y_new - y))])[-CONT_HISTORY:]
+    hist_y = (hist_y + [y_new])[-CONT_HISTORY:]
+    if its <= 2:
+        ds = min(ds * 1.6, ds_max)
+    elif its >= 5:
+        ds *= 0.6
+    return hist_s, hist_y, ds
 
 
 def _locate_fold(arc, y, t, ds, t_new):
