@@ -165,3 +165,12 @@ def test_a_two_record_power_law_has_no_standard_error():
     two, four = _power_rows(s)
     assert two["n ± standard error [1]"] == "1.11 (standard error not available: no degrees of freedom)"
     assert four["n ± standard error [1]"] == "2.4515 ± 0.0017" and two["F [N]"] == "2"
+
+
+def test_model_choice_names_the_rule_that_decided():
+    """The summary sentence says what decided the pick: held-out prediction, or (older results) the criterion."""
+    s = _selected_vs_cubic()
+    for decided_by, said, not_said in (("held-out prediction", "held-out force levels", "lowest BIC"),
+                                       ("bic", "lowest BIC", "held-out")):
+        line = model_choice_lines(dict(s, selection=[dict(s["selection"][0], decided_by=decided_by)]))[0]
+        assert said in line and not_said not in line, line

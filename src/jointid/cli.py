@@ -80,8 +80,8 @@ FIGURE_LEVELS = ("none", "summary", "all")
 def _add_identify_options(p):
     p.add_argument("--terms", default="q + -q^3 + q'",
                    help="restoring-force terms, e.g. \"q + -q^3 + q'\" or eq22, or auto: the model each preload's "
-                        "data select (candidate families ranked by cross-validation over the force levels and "
-                        "an information criterion; docs/method.md) (default: %(default)s)")
+                        "data select (polynomial, amplitude-law and hysteretic candidate families ranked by how well "
+                        "they predict each force level left out; docs/method.md) (default: %(default)s)")
     p.add_argument("--harmonics", type=_int_in(1, 200), default=5,
                    help="harmonics fitted to the acceleration (default: %(default)s)")
     p.add_argument("--damping-order", type=_int_in(0, 10), default=2, help="order of c(q_max) (default: %(default)s)")

@@ -257,20 +257,22 @@ def model_choice_lines(summary) -> list:
         cubic = next((r for r in sel.get("ranking") or [] if r.get("name") == "cubic"), None)
         behind = (f"; the paper's cubic is {format_value(cubic.get('delta_ic'), 3)} behind in {crit}"
                   if cubic and _finite(cubic.get("delta_ic")) and name != "cubic" else "")
+        # the rule that decided (held-out prediction since it exists; older results: the information criterion)
+        why = ("the simplest model predicting the held-out force levels within noise of the best"
+               if sel.get("decided_by") == "held-out prediction" else f"lowest {crit}")
         if _same_model(m, chosen):
-            out.append(f"Preload {p}: the data select the {name} model, the preload model shown below (lowest {crit} "
-                       f"among the candidates{behind})" + (f"; adequacy: {verdict}." if verdict else "."))
+            out.append(f"Preload {p}: the data select the {name} model, the preload model shown below ({why}{behind})" + (f"; adequacy: {verdict}." if verdict else "."))
         elif holds is False:
-            out.append(f"Preload {p}: believe the {name} model: the data select it (lowest {crit}{behind}) and the "
+            out.append(f"Preload {p}: believe the {name} model: the data select it ({why}{behind}) and the "
                        f"adequacy checks reject {fitted} ({verdict}). {fitted[0].upper() + fitted[1:]} is shown for "
                        "comparison with the paper: its parameters are equivalent values over the measured amplitudes, "
                        "not properties of the joint.")
         elif holds:
-            out.append(f"Preload {p}: the data prefer the {name} model (lowest {crit}{behind}) although {fitted} passes "
+            out.append(f"Preload {p}: the data prefer the {name} model ({why}{behind}) although {fitted} passes "
                        "the adequacy checks; use the selected model for prediction and the cubic for comparison "
                        "with the paper.")
         else:
-            out.append(f"Preload {p}: the data select the {name} model (lowest {crit}{behind}); {fitted} was not "
+            out.append(f"Preload {p}: the data select the {name} model ({why}{behind}); {fitted} was not "
                        "assessed for adequacy.")
     return out
 
