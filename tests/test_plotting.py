@@ -78,3 +78,21 @@ def test_hooks_draw_through_the_table(monkeypatch):
     assert seen == ["identify_plots.plot_damping_law", "identify_plots.plot_power_law", "notebook.result_html"]
     assert ax is not None and "<" in html
     plt.close("all")
+
+
+def test_selection_figure_shows_the_measure_that_decided():
+    """Bars: the held-out prediction score when it decided (the BIC difference as dots), else the BIC difference."""
+    from types import SimpleNamespace
+
+    from jointid.report.selection_plots import plot_selection
+
+    rows = [{"name": "cubic", "selected": True, "delta_ic": 0.0, "heldout_score": 0.002, "cv_force": 1.1},
+            {"name": "linear", "selected": False, "delta_ic": 300.0, "heldout_score": 0.2, "cv_force": 9.0},
+            {"name": "Iwan", "selected": False, "delta_ic": None, "heldout_score": 0.05, "cv_force": None}]
+    for heldout, label, widths in ((True, "held-out prediction score", [0.002, 0.2, 0.05]),
+                                   (False, "ΔBIC + 1", [1.0, 301.0, 0.0])):
+        sel = SimpleNamespace(table=lambda: rows, criterion="bic", heldout=heldout, preload=1)
+        ax = plot_selection(sel)
+        assert ax.get_xlabel().startswith(label)
+        got = [bar.get_width() for bar in ax.patches]
+        assert np.allclose(np.nan_to_num(got), widths), got

@@ -26,24 +26,40 @@ def selection_table(selection) -> str:
 
 
 def plot_selection(selection, ax=None):
-    """Criterion difference (bars, log scale) and cross-validated restoring-force score of each candidate."""
+    """The measure that decided, per candidate: the held-out prediction score (bars, log scale; the dashed
+    line is the within-noise limit) with the criterion difference as dots, or, where no held-out
+    prediction exists, the criterion difference (bars) with the cross-validated restoring-force score."""
+    from jointid.identify.selection import HELDOUT_FLOOR, HELDOUT_RATIO
+
     ax = new_axes(ax, figsize=(7.0, 4.0))
     rows = selection.table()
     names = [r["name"] for r in rows]
-    dic = np.array([np.nan if r["delta_ic"] is None else r["delta_ic"] for r in rows], float)
+
+    def column(key):
+        return np.array([np.nan if r.get(key) is None else r[key] for r in rows], float)
+
+    crit = selection.criterion.upper()
+    dic, held = column("delta_ic"), column("heldout_score")
+    by_heldout = bool(getattr(selection, "heldout", False)) and np.any(np.isfinite(held))
     y = np.arange(len(rows))
     colors = ["tab:green" if r["selected"] else "tab:blue" for r in rows]
-    ax.barh(y, np.maximum(dic, 0.0) + 1.0, color=colors, alpha=0.8, label=f"Δ{selection.criterion.upper()} + 1")
+    if by_heldout:
+        ax.barh(y, held, color=colors, alpha=0.8)
+        ax.axvline(HELDOUT_RATIO * np.nanmin(held) + HELDOUT_FLOOR, color="k", ls="--", lw=0.8)
+        ax.set_xlabel("held-out prediction score [1] (dashed: within noise of the best)", fontsize=9)
+        second, second_label = dic + 1.0, f"Δ{crit} + 1 (calibrated chi-square) [1]"
+    else:
+        ax.barh(y, np.maximum(dic, 0.0) + 1.0, color=colors, alpha=0.8)
+        ax.set_xlabel(f"Δ{crit} + 1 (calibrated chi-square) [1]")
+        second, second_label = column("cv_force"), "leave-one-level-out restoring-force score (1 = noise) [1]"
     ax.set_xscale("log")
     ax.set_yticks(y, names, fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel(f"Δ{selection.criterion.upper()} + 1 (calibrated chi-square) [1]")
-    cv = np.array([np.nan if r["cv_force"] is None else r["cv_force"] for r in rows], float)
-    if np.any(np.isfinite(cv)):
+    if np.any(np.isfinite(second) & (second > 0)):
         ax2 = ax.twiny()
-        ax2.plot(cv, y, "ko", ms=4, label="CV force score")
+        ax2.plot(np.where(second > 0, second, np.nan), y, "ko", ms=4)
         ax2.set_xscale("log")
-        ax2.set_xlabel("leave-one-level-out restoring-force score (1 = noise) [1]", fontsize=8)
+        ax2.set_xlabel(f"dots: {second_label}", fontsize=8)
     title = f"model selection, preload {tex_safe(selection.preload)}" if selection.preload is not None \
         else "model selection"
     ax.set_title(title, fontsize=9)
