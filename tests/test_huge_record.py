@@ -229,7 +229,7 @@ def _write_huge(folder, n, fmt, fs=51200.0):
 def test_huge_record_within_memory(tmp_path, fmt, n):
     """2e7 samples (the campaign limit) identified within 1.5 GiB peak RSS, the parameters recovered; a CSV
     record (5e6 samples: writing 2e7 as text takes most of a quarter of an hour) within the same bytes per
-    sample beyond the interpreter's own ~350 MiB (the whole-record code took about 200)."""
+    sample beyond a short record's run (about 230 MiB; the whole-record code took about 200 bytes per sample)."""
     _write_huge(tmp_path / "camp", n, fmt)
     p = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "camp"), str(tmp_path / "out")],
                        capture_output=True, text=True, timeout=1800)
@@ -238,10 +238,10 @@ def test_huge_record_within_memory(tmp_path, fmt, n):
     print(f"{fmt}: {n} samples, peak RSS {run['peak_mib']:.0f} MiB")
     assert run["rc"] == 0
     assert run["peak_mib"] < 1536.0
-    assert (run["peak_mib"] - 350.0) * 2**20 / n < 75.0, "bytes per sample beyond the interpreter's"
+    assert (run["peak_mib"] - 250.0) * 2**20 / n < 75.0, "bytes per sample beyond a short record's run"
     rec = json.loads((tmp_path / "out" / "results.json").read_text())["records"][0]
     assert rec["status"] == "ok" and rec["flags"] == []
     coef, se = rec["coefficients"], rec["stderr"]
     for name, truth in (("omega1^2", W1**2), ("k3", K3), ("c", C)):
         assert abs(coef[name] - truth) < 4 * se[name], (name, coef[name], se[name])
-    assert se["k3"] < 0.05 * K3
+    assert se["k3"] < 0.05 * K3 * (2e7 / n) ** 0.5  # the standard error shrinks as 1/sqrt(samples)
