@@ -27,7 +27,7 @@ CONFIG = {
 #: Headers that name things, not quantities (labels, counts, verdicts, texts): no unit.
 LABELS = {
     "preload", "model", "quantity", "value ± standard error", "95 % interval", "unit", "note", "verdict", "what",
-    "warning", "example", "records", "error", "file", "status", "index", "check", "value", "passed", "stage",
+    "warning", "warnings", "example", "records", "error", "file", "status", "index", "check", "value", "passed", "stage",
     "setting", "terms", "rule", "selected model", "coefficient", "fit", "band average", "reference", "folder",
     "manifest names", "formats", "failed", "UFF = CSV", "in [2, 3]", "n within [2, 3]", "parameters", "other",
     "peak resolved by the dwells", "outlier records", "parameter", "equality across force levels", "campaigns",
