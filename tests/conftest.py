@@ -39,3 +39,21 @@ def shared_data():
     if not SHARED_DATA.is_dir():
         pytest.skip(f"shared data folder {SHARED_DATA} is absent")
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    """The demo (seed 0, with figures), run once per test session for every slow test that reads it.
+
+    Returns the :class:`~jointid.app.demo.DemoResult`; its output set is ``demo_run.out_dir``
+    (report.html, results.json, figures/, campaigns/) and its console text ``demo_run.report()``.
+    Tests only read it: a test that changes files copies them first.
+    """
+    import warnings
+
+    from jointid.app.demo import run_demo
+    from jointid.errors import JointidWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointidWarning)
+        return run_demo(tmp_path_factory.mktemp("demo_run") / "demo", progress=False, seed=0)

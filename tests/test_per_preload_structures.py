@@ -98,11 +98,9 @@ def test_structure_files_per_preload_and_a_missing_preload(modal_campaign, tmp_p
 
 
 @pytest.mark.slow
-def test_two_preload_rig_campaign_gives_the_demo_table5(tmp_path):
+def test_two_preload_rig_campaign_gives_the_demo_table5(tmp_path, demo_run):
     """The demo's two single-preload rig campaigns joined into one: the same Table 5 in one run."""
-    from jointid.app.demo import run_demo
-
-    demo = run_demo(tmp_path / "demo", progress=False, figures=False)
+    demo = demo_run
     joined = tmp_path / "joined"
     entries, structures = [], {}
     for pr in demo.preloads:

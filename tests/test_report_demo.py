@@ -13,7 +13,6 @@ import pytest
 from html_page import parse_page
 from matplotlib.ticker import FixedFormatter
 
-from jointid.app.demo import run_demo
 from jointid.report.demo_report import demo_figures
 
 pytestmark = pytest.mark.slow
@@ -23,8 +22,8 @@ UNIT = re.compile(r"\[[^\]]+\]")
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    return run_demo(tmp_path_factory.mktemp("demo") / "out", progress=False, seed=0)
+def demo(demo_run):
+    return demo_run
 
 
 def test_demo_report_opens_with_the_summary(demo):

@@ -84,12 +84,10 @@ def test_refined_peak_of_a_linear_resonance():
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    """The demo at 120 and 540 N (seed 0, no figures): the paper's tables with the seed cubic,
+def demo(demo_run):
+    """The demo at 120 and 540 N (seed 0): the paper's tables with the seed cubic,
     the FRFs re-predicted with the model the data select for each preload."""
-    from jointid.app.demo import run_demo
-
-    return run_demo(tmp_path_factory.mktemp("demo") / "demo", progress=False, figures=False)
+    return demo_run
 
 
 @pytest.mark.slow

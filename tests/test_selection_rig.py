@@ -6,7 +6,6 @@ import warnings
 
 import pytest
 
-from jointid.app.demo import run_demo
 from jointid.app.reprediction import repredict_group
 from jointid.identify.model import PreloadForceStateMapping
 from jointid.app.heldout_scoring import single_mode_model
@@ -29,10 +28,8 @@ def _held_out(pr, key, sigs, lev, cand, level):
 
 
 @pytest.mark.slow
-def test_rig_cubic_flagged_and_selected_model_repredicts_held_out_level(tmp_path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        demo = run_demo(tmp_path / "demo", progress=False, seed=0, figures=False)
+def test_rig_cubic_flagged_and_selected_model_repredicts_held_out_level(demo_run):
+    demo = demo_run
     misses = []
     for pr in demo.preloads:
         key = next(iter(pr.result.adequacy))

@@ -379,13 +379,12 @@ def test_unesp_figure_units_and_error_measure(shared_data, tmp_path):
 
 
 @pytest.mark.slow
-def test_demo_figures_units_layout_and_error_measures(tmp_path):
+def test_demo_figures_units_layout_and_error_measures(demo_run):
     """The whole demo (slow): every figure's axes carry units, nothing overlaps, and each figure
     comparing the identified model with the measured dwells (Figs 10, 12-18) names its error measure."""
-    from jointid.app.demo import run_demo
     from jointid.report.demo_report import demo_figures
 
-    demo = run_demo(tmp_path / "demo", progress=False, seed=0)
+    demo = demo_run
     figs = demo_figures(demo)
     problems = []
     compared = 0
@@ -393,7 +392,7 @@ def test_demo_figures_units_layout_and_error_measures(tmp_path):
         problems += check_units(name, fig) + check_layout(name, fig)
         if re.match(r"fig(10|12|13|14|15|16|17|18)_", name):
             compared += 1
-            problems += check_error_measure(name, fig, tmp_path / "demo" / "figures" / f"{name}.png")
+            problems += check_error_measure(name, fig, demo.out_dir / "figures" / f"{name}.png")
     assert compared >= 8 and not problems, "\n".join(problems)
 
 

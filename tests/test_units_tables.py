@@ -275,22 +275,22 @@ noise = 0.01
 
 
 @pytest.mark.slow
-def test_demo_report_and_console_carry_units(tmp_path, capsys):
-    main(["demo", "--out", str(tmp_path / "demo"), "--quiet"])
-    text = capsys.readouterr().out
-    check_page(tmp_path / "demo" / "report.html")
+def test_demo_report_and_console_carry_units(demo_run):
+    text = demo_run.report()  # what `jointid demo` prints
+    out = demo_run.out_dir
+    check_page(out / "report.html")
     check_console(text)
     assert "Selected model: micro-slip + cubic" in text or "Selected model:" in text
     # the report's Table 5 band average of each preload is that preload's own (results.json)
     from jointid.report.formatting import format_pm
     from jointid.report.summary import band_resolution
 
-    tables = tables_of(tmp_path / "demo" / "report.html")
+    tables = tables_of(out / "report.html")
     assert "the model the data select" in tables[0]["caption"]
     (t5,) = [t for t in tables if t["caption"].startswith("The paper's Table 5")]
     col = t5["headers"].index("k3 [N/m³] band average (paper)")
     shown = {(r[0], r[1]): r[col] for r in t5["rows"]}
-    demo = json.loads((tmp_path / "demo" / "results.json").read_text())
+    demo = json.loads((out / "results.json").read_text())
     for pr in demo["preloads"]:
         s = pr["identification"]
         for g in s["groups"]:
