@@ -73,6 +73,26 @@ def test_harmonic_balance_energy_balance(rig120):
     assert w_in == pytest.approx(w_mat + w_joint, rel=2e-3)
 
 
+def test_reduced_model_is_the_engines_linear_model(rig120):
+    """The rig's reduced model uses the harmonic-balance engine's linear model (receptance, sizes,
+    shape checks) and its AFT force, not copies of them."""
+    import dataclasses
+
+    m = rig120.model
+    eng = m.engine()
+    w = 2 * np.pi * np.linspace(10.0, 900.0, 37)
+    assert np.array_equal(m.receptance(w), eng.receptance(w))
+    assert (m.n_modes, m.n_joints) == (eng.n_modes, eng.n_joints) == (4, 1)
+    U = 1e-5 * np.random.default_rng(0).standard_normal((1, 11))
+    F, J = m.joint_aft(U, 64, jacobian=True)
+    F2, J2, _ = eng.aft(U, 1.0, 5, 64)
+    assert np.array_equal(F, F2) and np.array_equal(J, J2)
+    with pytest.raises(StructureError, match="force_shape"):
+        dataclasses.replace(m, force_shape=m.force_shape[:3])
+    with pytest.raises(StructureError, match="finite"):
+        dataclasses.replace(m, joint_shapes=np.full_like(m.joint_shapes, np.nan))
+
+
 def test_settle_check_passes_on_the_orbit(rig120):
     states = rig120.sweep([26.2, 26.3, 26.4], 6.0)
     dev = settle_check(rig120.model, states, n_periods=4, steps_per_period=1024)

@@ -126,6 +126,13 @@ class _RigLawAFT:
         return (f, D, None) if velocity_jacobian else (f, D)
 
 
+def _engine(omega, zeta, joint_shapes, force_shape, rig_laws, laws=None) -> CondensedHB:
+    """The engine's model of a reduced model: ``laws`` (default the rig laws seen through AFT)
+    on the joint coordinates, each rig law's ``K_T`` in the linear model."""
+    laws = tuple(_RigLawAFT(law) for law in rig_laws) if laws is None else tuple(laws)
+    return CondensedHB(omega, zeta, joint_shapes, force_shape, laws, [law.linear_stiffness for law in rig_laws])
+
+
 @dataclass(frozen=True, eq=False)
 class RigSteadyState(HBPoint):
     """A periodic steady state of the reduced model found by harmonic balance.
@@ -227,12 +234,9 @@ class ReducedModel:
         om = np.array(self.omega, float).ravel()
         n = om.size
         ze = np.broadcast_to(np.asarray(self.zeta, float), (n,)).copy()
-        pf = np.array(self.force_shape, float).ravel()
         ps = np.array(self.joint_shapes, float).reshape(-1, n)
         pse = np.array(self.sensor_shapes, float).reshape(-1, n)
-        if pf.size != n:
-            raise StructureError(f"force_shape: expected {n} values, got {pf.size}")
-        if len(self.laws) != ps.shape[0] or len(self.directions) != ps.shape[0]:
+        if len(self.directions) != ps.shape[0]:
             raise StructureError(f"{ps.shape[0]} joint shapes need as many laws and directions")
         if len(self.sensor_names) != pse.shape[0]:
             raise StructureError("one sensor name per sensor shape row is needed")
@@ -241,25 +245,29 @@ class ReducedModel:
                 raise StructureError(f"laws: expected JointLaw objects, got {type(law).__name__}")
         if np.any(om <= 0) or np.any(ze < 0):
             raise StructureError("natural frequencies must be positive and damping ratios non-negative")
-        for name, a in (("omega", om), ("zeta", ze), ("force_shape", pf), ("joint_shapes", ps), ("sensor_shapes", pse)):
+        # the linear model and its checks (shapes, finiteness, one law per joint) are the engine's
+        linear = _engine(om, ze, ps, self.force_shape, self.laws)
+        for name, a in (("omega", linear.omega), ("zeta", linear.zeta), ("force_shape", linear.force_shape),
+                        ("joint_shapes", linear.joint_shapes), ("sensor_shapes", pse)):
             a.setflags(write=False)
             object.__setattr__(self, name, a)
         object.__setattr__(self, "sensor_names", tuple(self.sensor_names))
         object.__setattr__(self, "laws", tuple(self.laws))
         object.__setattr__(self, "directions", tuple(self.directions))
+        object.__setattr__(self, "_linear", linear)
 
     @property
     def n_modes(self) -> int:
-        return self.omega.size
+        return self._linear.n_modes
 
     @property
     def n_joints(self) -> int:
-        return self.joint_shapes.shape[0]
+        return self._linear.n_joints
 
     def receptance(self, w):
-        """Modal receptances ``1 / (Omega^2 - w^2 + 2 i zeta Omega w)``, shape ``w.shape + (n_modes,)``."""
-        w = np.asarray(w, float)[..., None]
-        return 1.0 / (self.omega**2 - w**2 + 2j * self.zeta * self.omega * w)
+        """Modal receptances ``1 / (Omega^2 - w^2 + 2 i zeta Omega w)``, shape ``w.shape + (n_modes,)``
+        (:meth:`CondensedHB.receptance <jointid.simulate.structure_hb.CondensedHB.receptance>`)."""
+        return self._linear.receptance(w)
 
     def linear_frf(self, frequency_hz, output="acceleration"):
         """Stuck-joint FRF at the sensors per newton: ``(n_sensors, n_f)`` complex."""
@@ -275,29 +283,14 @@ class ReducedModel:
         ``laws`` (default: the rig's laws, each reporting its periodic state) act on the joint
         coordinates; the stiffness ``K_T`` of each law is in the linear model.
         """
-        laws = tuple(_RigLawAFT(law) for law in self.laws) if laws is None else tuple(laws)
-        return CondensedHB(self.omega, self.zeta, self.joint_shapes, self.force_shape, laws,
-                           [law.linear_stiffness for law in self.laws])
+        return _engine(self.omega, self.zeta, self.joint_shapes, self.force_shape, self.laws, laws)
 
-    def _aft(self, U, E, P, jacobian=False):
-        """Nonlinear joint force coefficients of joint motions ``U (n_j, n)``, states at t = 0
-        and (optionally) the block-diagonal Jacobian ``d F / d U``."""
-        u = U @ E.T  # (n_j, N)
-        F = np.empty_like(U)
-        states = []
-        nj, n = U.shape
-        J = np.zeros((nj, n, nj, n)) if jacobian else None
-        for j, law in enumerate(self.laws):
-            K = law.linear_stiffness
-            if jacobian:
-                f, s0, D = law.periodic_force(u[j], jacobian=True)
-                D[np.diag_indices_from(D)] -= K
-                J[j, :, j, :] = P @ D @ E
-            else:
-                f, s0 = law.periodic_force(u[j])
-            F[j] = (f - K * u[j]) @ P.T
-            states.append(s0)
-        return F, states, (None if J is None else J.reshape(nj * n, nj * n))
+    def joint_aft(self, U, n_time, jacobian=False):
+        """Nonlinear joint force coefficients ``F (n_j, 2H + 1)`` of joint motions ``U`` and
+        (optionally) the block-diagonal ``dF/dU``: the engine's AFT (:meth:`CondensedHB.aft`)."""
+        H = (np.shape(U)[-1] - 1) // 2  # rate-independent laws: the frequency does not enter
+        F, J, _ = self._linear.aft(np.asarray(U, float), 0.0, H, int(n_time), jacobian=jacobian)
+        return F, J
 
     @single_threaded
     def harmonic_balance(self, omega, force, n_harmonics=9, *, n_time=None, guess=None, tol=1e-10, max_iter=40):

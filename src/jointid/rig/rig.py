@@ -36,7 +36,6 @@ from ..errors import ConvergenceError, ConvergenceWarning, StructureError
 from ..io.channels import Channels
 from ..modal.analysis import ModalModel, modal_analysis
 from ..modal.beam import SEED_GEOMETRY, JointedBeam, seed_bolted_beam
-from ..numerics.aft import aft_basis
 from ..numerics.peaks import parabolic_peak, refine_peak  # noqa: F401 (refine_peak re-exported: jointid.rig.rig.refine_peak)
 from .iwan import IwanParameters, JointLaw
 from .reduced import JOINT_DIRECTIONS, ReducedModel, RigSteadyState, sample_series, settle_check
@@ -504,7 +503,6 @@ class VirtualRig:
         H = int(n_harmonics)
         n = 2 * H + 1
         nm, nj = m.n_modes, m.n_joints
-        E, _, P = aft_basis(H, int(n_time), "F")  # the layout of ReducedModel.steady_state
         kk = np.zeros(n)
         kk[1::2] = kk[2::2] = np.arange(1, H + 1)
         Psi = m.joint_shapes
@@ -513,7 +511,7 @@ class VirtualRig:
 
         def residual(Y, w, xi, jac):
             U = Psi @ Y
-            F, _, JF = m._aft(U, E, P, jacobian=jac)
+            F, JF = m.joint_aft(U, n_time, jacobian=jac)
             R = Psi.T @ F
             d = 2 * m.zeta * m.omega - xi
             R = R + (m.omega[:, None] ** 2 - (kk * w) ** 2) * Y
