@@ -211,13 +211,15 @@ class CondensedHB:
         return self.joint_shapes.shape[0]
 
     # --- linear pieces ---------------------------------------------------------------
-    def receptance(self, w):
+    def receptance(self, w, xi=0.0):
         """Modal receptances ``1 / (Omega^2 - w^2 + 2 i zeta Omega w)``, shape ``w.shape + (n_modes,)``.
 
-        A rigid-body mode at ``w = 0`` gives 0 (no constant rigid-body motion).
+        A rigid-body mode at ``w = 0`` gives 0 (no constant rigid-body motion).  ``xi``: a
+        self-excitation ``-xi eta'`` (the nonlinear modes of :mod:`jointid.simulate.nlmodes`),
+        ``2 zeta Omega`` becomes ``2 zeta Omega - xi``.
         """
         w = np.asarray(w, float)[..., None]
-        den = self.omega**2 - w**2 + 2j * self.zeta * self.omega * w
+        den = self.omega**2 - w**2 + 1j * (2 * self.zeta * self.omega - xi) * w
         with np.errstate(divide="ignore", invalid="ignore"):
             out = 1.0 / den
         return np.where(den == 0, 0.0, out)
