@@ -40,6 +40,7 @@ from ..identify.laws import (
 from ..identify.model import PreloadForceStateMapping
 from ..identify.terms import library
 from ..identify.uncertainty import LowRankCovariance
+from ..numerics.intervals import band_mean_resolution
 from .campaign_result import GroupResult, group_key
 
 __all__ = ["CampaignFit", "in_pooled_fits", "pooled_mask", "gain_free", "pooled_fit", "with_measured_energy",
@@ -140,14 +141,18 @@ def _group_fits(outcomes, use, settings):
     outcomes = list(outcomes)
     for key in keys:
         members = [i for i, o in enumerate(outcomes) if o.spec.group == key and use[i]]
-        pooled = band = gain = None
+        pooled = band = gain = resolution = None
         if members:
             ctx = f"group preload={key[0]}, force_level={key[1]}: "
             pooled, gain = pooled_fit([outcomes[i].signals for i in members], settings, context=ctx,
                                       fits=[outcomes[i].fit for i in members])
             notes += [(w, IllConditionedWarning) for w in pooled.warnings]  # resolution and conditioning
             if gain is None:
-                band = band_average([outcomes[i].fit for i in members])
+                fits = [outcomes[i].fit for i in members]
+                band = band_average(fits)
+                if band.get("k3") is not None:
+                    resolution = band_mean_resolution([f.k3 for f in fits], band["k3"], pooled.k3,
+                                                      pooled.get_stderr("k3") if pooled.k3 is not None else None)
             else:
                 band = {"omega1": float(np.mean(gain.omega1_per_record)), "k3": None, "n_records": len(members)}
                 for j, i in enumerate(members):
@@ -157,7 +162,7 @@ def _group_fits(outcomes, use, settings):
                     outcomes[i] = replace(outcomes[i], c_pooled=float(pooled.get("c")[j]),
                                           c_pooled_stderr=float(pooled.get_stderr("c")[j]))
         groups.append(GroupResult(key[0], key[1], tuple(outcomes[i].spec.index for i in members), pooled, band,
-                                  gain=gain))
+                                  gain=gain, band_resolution=resolution))
     return groups, outcomes, notes
 
 

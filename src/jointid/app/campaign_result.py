@@ -22,7 +22,8 @@ __all__ = ["GroupResult", "CampaignResult", "group_key"]
 
 @dataclass(frozen=True)
 class GroupResult:
-    """One (preload, force level) group: pooled fit, band average and power law."""
+    """One (preload, force level) group: pooled fit, band average (with the standard error and
+    resolution of its ``k3``, :func:`jointid.numerics.intervals.band_mean_resolution`) and power law."""
 
     preload: object
     force_level: object
@@ -32,6 +33,7 @@ class GroupResult:
     power_law: PowerLaw | None = None
     power_law_error: str | None = None
     gain: object = None  # GainFit when the force gain was identified
+    band_resolution: dict | None = None  # standard error and resolution of the band-average k3
 
     def summary(self) -> dict:
         d = {"preload": self.preload, "force_level": self.force_level, "records": list(self.record_indices)}
@@ -58,6 +60,8 @@ class GroupResult:
                 k3_mean=self.band.get("k3"),
                 band_average=self.band,
             )
+        if self.band_resolution:
+            d["band_resolution"] = dict(self.band_resolution)
         return d
 
     def __repr__(self):

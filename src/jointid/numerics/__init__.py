@@ -1,4 +1,4 @@
-"""Shared numerics on the ground floor: harmonic (AFT) bases and peak refinement.
+"""Shared numerics on the ground floor: harmonic (AFT) bases, peak refinement, band-mean intervals.
 
 Small, general routines used by several floors (harmonic balance in
 :mod:`jointid.simulate.hbm`, the rig's reduced model in :mod:`jointid.rig.reduced`, the
@@ -9,10 +9,14 @@ and :mod:`jointid.errors` / :mod:`jointid.conventions`, so every floor may use i
   alternating frequency/time method in the harmonic convention of
   :mod:`jointid.conventions`;
 * :mod:`jointid.numerics.peaks` -- the peak of sampled data refined by a parabola, and
-  samples of a peak refined by interval halving.
+  samples of a peak refined by interval halving;
+* :mod:`jointid.numerics.intervals` -- the standard error, 95 % interval and resolution of
+  a band average of single-record estimates (computed by :mod:`jointid.app`, read by the
+  report).
 """
 
 from .aft import aft_basis, basis_at
+from .intervals import band_mean_resolution
 from .peaks import parabolic_peak, refine_peak
 
-__all__ = ["aft_basis", "basis_at", "parabolic_peak", "refine_peak"]
+__all__ = ["aft_basis", "basis_at", "band_mean_resolution", "parabolic_peak", "refine_peak"]

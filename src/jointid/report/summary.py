@@ -14,6 +14,7 @@ from collections import Counter
 
 import numpy as np
 
+from ..numerics.intervals import Z95, band_mean_resolution
 from .formatting import (
     UNITS,
     format_ci,
@@ -31,7 +32,6 @@ __all__ = ["coefficient_note", "model_rows", "table5_rows", "band_resolution", "
            "group_messages", "warning_rows", "error_lines", "backbone_lines", "summary_lines", "console_lines", "lead_lines", "lead_tables", "Z95",
            "ADEQUACY_NOTE"]
 
-Z95 = 1.959963984540054
 
 _PREFIX = re.compile(r"^\s*(?:[^\s\[]+\s+)?\[record\s+\d+\]:\s*")
 
@@ -299,31 +299,36 @@ def band_resolution(summary, group) -> dict:
     The band average's standard error is the scatter of the single-record values over the
     square root of their number.  It is *unresolved* when its 95 % interval includes zero and
     *inconsistent* when it differs from the pooled fit by more than their combined 95 %
-    interval.  Returns ``{"mean", "stderr", "resolved", "consistent", "note"}`` (``{}``
+    interval.  The campaign identification computes it (the group's ``band_resolution`` in
+    ``results.json``); for older results without that key it is computed here from the
+    records.  Returns ``{"mean", "stderr", "resolved", "consistent", "note"}`` (``{}``
     without single-record ``k3``).
     """
+    band = group.get("band_resolution")
+    if band is None:
+        band = band_mean_resolution(_band_k3(summary, group), group.get("k3_mean"), group.get("k3"),
+                                    group.get("k3_stderr"))
+    if not band:
+        return {}
+    se = float(band["stderr"]) if _finite(band.get("stderr")) else float("nan")  # null in results.json
+    notes = []
+    if not band["resolved"]:
+        notes.append("unresolved: its 95 % interval includes zero")
+    if band.get("consistent") is False:
+        notes.append("differs from the pooled fit beyond their 95 % intervals")
+    return {"mean": float(band["mean"]), "stderr": se, "resolved": bool(band["resolved"]),
+            "consistent": band.get("consistent"), "note": "; ".join(notes)}
+
+
+def _band_k3(summary, group) -> list:
+    """Single-record ``k3`` of a group's identified records (results.json written before the
+    group carried its ``band_resolution``)."""
     # records are numbered per campaign: the group's records are those of its own preload and
     # force level with these indices (summaries of several campaigns may share indices)
     key = (str(group.get("preload")), str(group.get("force_level")))
     members = set(group.get("records") or [])
-    k3 = [r.get("k3") for r in summary.get("records") or [] if r.get("index") in members and r.get("status") == "ok"
-          and (str(r.get("preload", key[0])), str(r.get("force_level", key[1]))) == key]
-    k3 = np.array([v for v in k3 if _finite(v)], float)
-    if k3.size == 0:
-        return {}
-    mean = float(group["k3_mean"]) if _finite(group.get("k3_mean")) else float(k3.mean())
-    se = float(k3.std(ddof=1) / np.sqrt(k3.size)) if k3.size > 1 else float("nan")
-    resolved = bool(_finite(se) and abs(mean) > Z95 * se)
-    pooled, pse = group.get("k3"), group.get("k3_stderr")
-    consistent = None
-    if _finite(pooled) and _finite(pse) and _finite(se):
-        consistent = bool(abs(mean - pooled) <= Z95 * math.hypot(se, pse))
-    notes = []
-    if not resolved:
-        notes.append("unresolved: its 95 % interval includes zero")
-    if consistent is False:
-        notes.append("differs from the pooled fit beyond their 95 % intervals")
-    return {"mean": mean, "stderr": se, "resolved": resolved, "consistent": consistent, "note": "; ".join(notes)}
+    return [r.get("k3") for r in summary.get("records") or [] if r.get("index") in members
+            and r.get("status") == "ok" and (str(r.get("preload", key[0])), str(r.get("force_level", key[1]))) == key]
 
 
 def table5_rows(summary) -> list:
