@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jointid.numerics import aft_basis, basis_at, parabolic_peak, refine_peak
+from jointid.numerics import aft_basis, basis_at, modal_denominator, parabolic_peak, refine_peak
 
 
 @pytest.mark.parametrize("H, N", [(1, 8), (3, 32), (9, 128), (9, 256)])
@@ -65,3 +65,15 @@ def test_refine_peak_halves_until_xtol():
     assert xs[i + 1] - xs[i] <= 1e-7 and xs[i] - xs[i - 1] <= 1e-7
     exact = np.sqrt(1.0 - 0.02**2 / 2)  # maximum of f
     assert parabolic_peak(xs, ys)[0] == pytest.approx(exact, abs=1e-9)
+
+
+def test_modal_denominator_is_the_state_space_receptance():
+    """``1 / modal_denominator`` is ``C (i w I - A)^-1 B`` of ``q'' + 2 zeta Omega q' + Omega^2 q = f``."""
+    for Om, ze in ((3.0, 0.02), (170.0, 0.3)):
+        A = np.array([[0.0, 1.0], [-(Om**2), -2 * ze * Om]])
+        for w in (0.0, 0.5 * Om, Om, 4.1 * Om):
+            H = np.linalg.solve(1j * w * np.eye(2) - A, [0.0, 1.0])[0]
+            assert 1.0 / modal_denominator(Om, ze, w) == pytest.approx(H, rel=1e-12)
+    # broadcast: modes down, frequencies across
+    d = modal_denominator(np.array([[1.0], [2.0]]), np.array([[0.1], [0.2]]), np.array([0.5, 1.0, 3.0]))
+    assert d.shape == (2, 3) and d[1, 2] == pytest.approx(4.0 - 9.0 + 2j * 0.2 * 2.0 * 3.0)

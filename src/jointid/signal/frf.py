@@ -38,6 +38,7 @@ import scipy.optimize
 import scipy.signal
 
 from ..errors import IdentificationError, RecordError
+from ..numerics.receptance import modal_denominator
 
 __all__ = [
     "FRFEstimate",
@@ -236,7 +237,7 @@ def modal_frf(frequency_hz, omega, damping_ratio, phi_force, phi_out, output: st
     po = np.asarray(phi_out, dtype=float)
     single = po.ndim == 1
     po = np.atleast_2d(po)
-    den = wr[:, None] ** 2 - w[None, :] ** 2 + 2j * z[:, None] * wr[:, None] * w[None, :]
+    den = modal_denominator(wr[:, None], z[:, None], w[None, :])
     H = (po * pf[None, :]) @ (1.0 / den) * (1j * w) ** p
     return H[0] if single else H
 
@@ -364,7 +365,7 @@ def _fit_band(f, Hd, weight, f0, z0):
 
     def basis(x):
         wr, z = np.exp(x)
-        return np.column_stack([1.0 / (wr**2 - w**2 + 2j * z * wr * w), np.ones_like(w), 1.0 / w**2])
+        return np.column_stack([1.0 / modal_denominator(wr, z, w), np.ones_like(w), 1.0 / w**2])
 
     def solve(x):
         B = basis(x) * sw[:, None]
@@ -763,7 +764,7 @@ def simulate_modal_response(
         w = 2 * np.pi * np.fft.rfftfreq(n, dt)
         U = np.fft.rfft(F)
         for r in range(wr.size):
-            X = pf[r] * U / (wr[r] ** 2 - w**2 + 2j * z[r] * wr[r] * w)
+            X = pf[r] * U / modal_denominator(wr[r], z[r], w)
             q[r] = np.fft.irfft(X, n)
             qd[r] = np.fft.irfft(1j * w * X, n)
             qdd[r] = np.fft.irfft(-(w**2) * X, n)
