@@ -5,7 +5,11 @@ each force level the frequency response over the band by the multi-mode harmonic
 condensed on the joint DOFs, continued through folds
 (:mod:`jointid.simulate.structure_hb`), and reports per level the peak of the first-harmonic
 amplitude at every response DOF (located between the continued points), the folds, the
-Newton iterations, the largest relative residual and the cost per point.  The stability of
+Newton iterations, the largest relative residual and the cost per point.  For every elastic
+mode in the band (else the one nearest to it) it computes the damped nonlinear mode by the
+extended periodic motion concept (:mod:`jointid.simulate.nlmodes`): backbone frequency and
+damping ratio against the modal amplitude, from 1/1000 of the largest amplitude the
+responses reach up to 1.5 times it.  The stability of
 the points is not reported: Hill's method with the periodic-map Jacobian of slider laws
 (:meth:`jointid.simulate.structure_hb.CondensedHB.growth_rate`) is not yet checked for them.
 :func:`write_structure_predictions` writes ``results.json``, ``report.txt`` and a figure as
@@ -24,6 +28,7 @@ import numpy as np
 from ..errors import ConvergenceError, ManifestError
 from ..io.structure_model import read_structure_model
 from ..simulate.structure import structure_from_spec
+from ..simulate.nlmodes import epmc_backbone
 from ..simulate.structure_hb import default_n_time, to_complex
 
 __all__ = ["StructurePrediction", "predict_structure", "write_structure_predictions", "located_peak"]
@@ -65,6 +70,7 @@ class LevelPrediction:
     max_residual: float = float("nan")
     seconds_per_point: float = float("nan")
     error: str = ""
+    modal_max: object = None  # largest first-harmonic amplitude of each modal coordinate on the curve
 
     def summary(self) -> dict:
         out = {
@@ -81,6 +87,42 @@ class LevelPrediction:
         return out
 
 
+@dataclass
+class ModeBackbone:
+    """The backbone of one mode (``mode`` counted from 1 in the model's mode order)."""
+
+    mode: int
+    linear_frequency_hz: float
+    linear_damping_ratio: float
+    amplitude: list = field(default_factory=list)
+    frequency_hz: list = field(default_factory=list)
+    damping_ratio: list = field(default_factory=list)
+    joint_amplitude: dict = field(default_factory=dict)  # joint name -> first-harmonic amplitude
+    response_amplitude: dict = field(default_factory=dict)  # response DOF -> first-harmonic amplitude
+    newton_iterations_mean: float = float("nan")
+    max_residual: float = float("nan")
+    seconds_per_point: float = float("nan")
+    error: str = ""
+
+    def summary(self) -> dict:
+        return {
+            "mode": self.mode,
+            "linear_frequency_hz": self.linear_frequency_hz,
+            "linear_damping_ratio": self.linear_damping_ratio,
+            "amplitude": self.amplitude,
+            "amplitude_definition": "first-harmonic amplitude of the mass-normalised modal coordinate",
+            "frequency_hz": self.frequency_hz,
+            "damping_ratio": self.damping_ratio,
+            "joint_amplitude": self.joint_amplitude,
+            "response_amplitude": self.response_amplitude,
+            "n_points": len(self.amplitude),
+            "newton_iterations_mean": _finite_or_none(self.newton_iterations_mean),
+            "max_residual": _finite_or_none(self.max_residual),
+            "timing": {"seconds_per_point": _finite_or_none(self.seconds_per_point)},
+            "error": self.error,
+        }
+
+
 def _finite_or_none(x):
     return float(x) if x is not None and math.isfinite(x) else None
 
@@ -91,14 +133,16 @@ class StructurePrediction:
     model: dict
     settings: dict
     levels: list
+    backbones: list = field(default_factory=list)
 
     @property
     def failed(self) -> list:
-        return [lv for lv in self.levels if lv.error]
+        return [lv for lv in self.levels if lv.error] + [b for b in self.backbones if b.error]
 
     def summary(self) -> dict:
         return {"kind": "structure prediction", "source": self.source, "model": self.model,
-                "settings": self.settings, "predictions": [lv.summary() for lv in self.levels]}
+                "settings": self.settings, "predictions": [lv.summary() for lv in self.levels],
+                "backbones": [b.summary() for b in self.backbones]}
 
     def lines(self) -> list:
         out = [f"structure model {self.model['name']} ({self.source}): {self.model['n_modes']} modes, "
@@ -114,6 +158,18 @@ class StructurePrediction:
             out.append(f"F = {lv.force_level:g}: {pk}; folds at {folds} Hz; {lv.n_points} points, "
                        f"{lv.newton_iterations_mean:.2g} Newton iterations per point, residual <= "
                        f"{lv.max_residual:.1e}, {1e3 * lv.seconds_per_point:.3g} ms per point")
+        for b in self.backbones:
+            head = (f"nonlinear mode {b.mode} (linear {b.linear_frequency_hz:.6g} Hz, damping ratio "
+                    f"{b.linear_damping_ratio:.3g}): ")
+            if b.amplitude:
+                i = int(np.argmax(b.damping_ratio))
+                out.append(head + f"{b.frequency_hz[0]:.6g} Hz at modal amplitude {b.amplitude[0]:.3g} to "
+                           f"{b.frequency_hz[-1]:.6g} Hz at {b.amplitude[-1]:.3g}; damping ratio "
+                           f"{b.damping_ratio[0]:.3g} to {b.damping_ratio[-1]:.3g} (largest {b.damping_ratio[i]:.3g} "
+                           f"at {b.amplitude[i]:.3g}); {len(b.amplitude)} points, residual <= {b.max_residual:.1e}, "
+                           f"{1e3 * b.seconds_per_point:.3g} ms per point")
+            if b.error:
+                out.append(head + f"FAILED: {b.error}")
         return out
 
     def report(self) -> str:
@@ -201,6 +257,7 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
             if refined is not None:
                 fpk, apk = refined
             lv.peaks[d] = {"peak_frequency_hz": fpk, "peak_amplitude": apk, "located": located}
+        lv.modal_max = np.abs(to_complex(np.array([p.modal for p in pts]))[..., 1]).max(axis=0)
         lv.folds_hz = [float(pts[i].frequency_hz) for i in curve.folds]
         lv.n_points = len(pts)
         lv.newton_iterations_mean = float(np.mean([p.iterations for p in pts]))
@@ -209,11 +266,68 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
         out.append(lv)
         if progress:
             progress(f"F = {F:g}: {len(pts)} points, {len(lv.folds_hz)} fold(s)")
-    return StructurePrediction(spec.path, model, settings, out)
+    backbones = [_mode_backbone(st, spec, r, top, H, N, response) for r, top in _backbone_plan(st, band, out)]
+    if progress:
+        for b in backbones:
+            progress(f"nonlinear mode {b.mode}: {len(b.amplitude)} points" + (f"; {b.error}" if b.error else ""))
+    return StructurePrediction(spec.path, model, settings, out, backbones)
+
+
+def _backbone_plan(st, band, levels):
+    """``(mode index, largest modal amplitude)`` of the modes whose backbones are computed.
+
+    The elastic modes with a natural frequency in the band, else the elastic mode nearest to
+    it; amplitudes up to 1.5 times the largest first-harmonic modal amplitude on the computed
+    curves (the linear resonance amplitude at the largest force where no curve was computed).
+    """
+    e = st.engine
+    f = e.omega / (2 * np.pi)
+    elastic = np.flatnonzero(~e._rigid)
+    modes = [int(r) for r in elastic if band[0] <= f[r] <= band[1]]
+    if not modes and elastic.size:
+        modes = [int(elastic[np.argmin(np.minimum(abs(f[elastic] - band[0]), abs(f[elastic] - band[1])))])]
+    plan = []
+    for r in modes:
+        reached = [float(lv.modal_max[r]) for lv in levels if lv.modal_max is not None]
+        if reached and max(reached) > 0:
+            top = 1.5 * max(reached)
+        else:
+            Fmax = max(lv.force_level for lv in levels)
+            d = 2 * e.zeta[r] * e.omega[r] ** 2
+            top = abs(e.force_shape[r]) * Fmax / d if d > 0 else 0.0
+        plan.append((r, float(top)))
+    return plan
+
+
+def _mode_backbone(st, spec, r, top, H, N, response, n_points=20) -> ModeBackbone:
+    e = st.engine
+    b = ModeBackbone(r + 1, float(e.omega[r] / (2 * np.pi)), float(e.zeta[r]))
+    if not (top > 0 and math.isfinite(top)):
+        b.error = "no amplitude scale: the force does not excite this mode"
+        return b
+    t0 = time.process_time()
+    bb = epmc_backbone(e, r, np.geomspace(1e-3 * top, top, n_points), H, n_time=N, partial=True)
+    cost = time.process_time() - t0
+    b.error = bb.error
+    if not len(bb):
+        return b
+    b.amplitude = [float(x) for x in bb.amplitude]
+    b.frequency_hz = [float(x) for x in bb.frequency_hz]
+    b.damping_ratio = [float(x) for x in bb.damping_ratio]
+    ja = bb.joint_amplitude
+    b.joint_amplitude = {j.name: [float(x) for x in ja[:, i]] for i, j in enumerate(spec.joints)}
+    for d in response:
+        shape = st.modal.shape(d)
+        b.response_amplitude[d] = [float(abs(to_complex(shape @ p.modal)[1])) for p in bb.points]
+    b.newton_iterations_mean = float(np.mean([p.iterations for p in bb.points]))
+    b.max_residual = float(max(p.residual_norm for p in bb.points))
+    b.seconds_per_point = cost / len(bb)
+    return b
 
 
 def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> dict:
-    """``results.json``, ``report.txt`` and ``figures/structure_frf.png`` in ``out`` as one output set."""
+    """``results.json``, ``report.txt``, ``figures/structure_frf.png`` (the backbones dashed) and
+    ``figures/backbones.png`` in ``out`` as one output set."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -239,6 +353,12 @@ def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> 
                 line, = ax.plot(lv.frequency_hz, lv.amplitude[d], lw=1.2, label=f"F = {lv.force_level:g}")
                 pk = lv.peaks[d]
                 ax.plot(pk["peak_frequency_hz"], pk["peak_amplitude"], "o", color=line.get_color(), ms=4)
+            for b in result.backbones:
+                if b.amplitude:
+                    ax.plot(b.frequency_hz, b.response_amplitude[d], "k--", lw=0.9,
+                            label=f"backbone, mode {b.mode}")
+            ax.set_ylim(bottom=0.0, top=1.1 * max([max(lv.amplitude[d]) for lv in result.levels if not lv.error]
+                                                  or [1.0]))
             ax.set_ylabel(f"|{d}| first harmonic")
             ax.grid(alpha=0.3)
         axes[-1, 0].set_xlabel("frequency [Hz]")
@@ -248,5 +368,22 @@ def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> 
         atomic_write(tmp / "figures" / "structure_frf.png", figure_to_png(fig, dpi=110))
         plt.close(fig)
         paths["figures"] = [tmp / "figures" / "structure_frf.png"]
+        drawn = [b for b in result.backbones if b.amplitude]
+        if drawn:
+            fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.4))
+            for b in drawn:
+                ax1.semilogx(b.amplitude, b.frequency_hz, lw=1.2, label=f"mode {b.mode}")
+                ax2.semilogx(b.amplitude, b.damping_ratio, lw=1.2)
+            ax1.set_ylabel("backbone frequency [Hz]")
+            ax2.set_ylabel("damping ratio")
+            for ax in (ax1, ax2):
+                ax.set_xlabel("modal amplitude (first harmonic)")
+                ax.grid(alpha=0.3)
+            ax1.legend(fontsize=8)
+            fig.suptitle(f"{result.model['name']}: nonlinear modes (extended periodic motion concept)", fontsize=10)
+            fig.tight_layout()
+            atomic_write(tmp / "figures" / "backbones.png", figure_to_png(fig, dpi=110))
+            plt.close(fig)
+            paths["figures"].append(tmp / "figures" / "backbones.png")
     rel = (lambda v: final / Path(v).relative_to(tmp))
     return {k: ([rel(x) for x in v] if isinstance(v, list) else rel(v)) for k, v in paths.items()}

@@ -92,6 +92,7 @@ class NonlinearModeBackbone:
 
     mode: int
     points: tuple
+    error: str = ""  # why the backbone stops early (``epmc_backbone(..., partial=True)``)
 
     @property
     def amplitude(self) -> np.ndarray:
@@ -274,7 +275,8 @@ def _start(prob: _Epmc, a, guess):
 
 @single_threaded
 def epmc_backbone(engine: CondensedHB, mode: int, amplitudes, n_harmonics: int = 9, *, n_time=None,
-                  tol: float = 1e-10, max_iter: int = 40, max_halvings: int = 8) -> NonlinearModeBackbone:
+                  tol: float = 1e-10, max_iter: int = 40, max_halvings: int = 8,
+                  partial: bool = False) -> NonlinearModeBackbone:
     """Backbone of one mode: :func:`epmc_point` continued over the amplitudes in the given order.
 
     Each point starts from a secant predictor in log amplitude through the two previous
@@ -290,11 +292,14 @@ def epmc_backbone(engine: CondensedHB, mode: int, amplitudes, n_harmonics: int =
         First-harmonic modal amplitudes, positive (increasing order recommended).
     n_harmonics, n_time : int
         Harmonics 0..H and AFT samples per period (default :func:`default_n_time`).
+    partial : bool
+        When a point cannot be reached, return the points before it with the reason in
+        ``error`` instead of raising.
 
     Raises
     ------
     ConvergenceError
-        When a point cannot be reached; the message names the amplitude.
+        When a point cannot be reached (and not ``partial``); the message names the amplitude.
     """
     H = int(n_harmonics)
     N = default_n_time(H) if n_time is None else int(n_time)
@@ -314,9 +319,11 @@ def epmc_backbone(engine: CondensedHB, mode: int, amplitudes, n_harmonics: int =
             out = _newton(prob, a, U, w, xi, tol, max_iter)
             if out is None:
                 if a_done is None or halvings >= max_halvings:
-                    raise ConvergenceError(
-                        f"nonlinear mode {prob.r}: no solution at amplitude {a:.4g} (Newton did not converge to "
-                        f"{tol:g} after {halvings} step halvings)")
+                    msg = (f"nonlinear mode {prob.r}: no solution at amplitude {a:.4g} (Newton did not converge to "
+                           f"{tol:g} after {halvings} step halvings)")
+                    if partial:
+                        return NonlinearModeBackbone(prob.r, tuple(pts), msg)
+                    raise ConvergenceError(msg)
                 halvings += 1
                 todo.append(0.5 * (a_done + a))
                 continue
