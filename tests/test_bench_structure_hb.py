@@ -69,6 +69,8 @@ def test_case_files_load_back_and_reproduce_the_printed_points(bench, tmp_path, 
         assert np.linalg.norm(ev["R"]) / np.linalg.norm(p.joint) < 1e-8
     assert level["points"] >= 3 and level["max_residual"] < 1e-8
     assert level["condensed_vs_full"] < 1e-8  # the full-DOF baseline finds the same orbits
+    it_c, it_f = level["fixed_iterations"]
+    assert abs(it_c - it_f) <= 1.0  # in as many Newton steps: the baseline is not handicapped
     # the printed row carries those numbers
     row = next(line for line in text.splitlines() if line.strip().startswith("6.00"))
     printed = [float(x) for x in re.findall(r"[-+]?\d+\.?\d*(?:e[-+]\d+)?", row)]
