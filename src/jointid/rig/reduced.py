@@ -202,6 +202,11 @@ class Trajectory:
 class ReducedModel:
     """Modal-truncated jointed beam with nonlinear joint laws.
 
+    Its linear model (sizes, receptance, the checks of the shapes) and its joint AFT force are
+    those of the harmonic-balance engine, :class:`~jointid.simulate.structure_hb.CondensedHB`,
+    built once from these arrays with each law's ``K_T`` in the linear model; the rig adds its
+    sensors, its time integration (:func:`integrate`) and the laws' hysteretic states.
+
     Parameters
     ----------
     omega : array, shape (n_modes,)
