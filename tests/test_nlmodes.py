@@ -87,6 +87,36 @@ def test_multi_harmonic_mode_balances_the_energy():
         assert np.hypot(fj[5], fj[6]) > 0.1 * np.hypot(fj[1], fj[2])  # the slipping joint's third harmonic
 
 
+def test_mode_is_a_periodic_orbit_of_a_time_integration():
+    """Two modes, a hardening cubic spring with displacement-dependent damping (smooth), 15
+    harmonics, at an amplitude where the frequency has risen 39 %: started from the EPMC
+    point, an independent time integration (DOP853) of the self-excited equations returns to
+    its initial state after one period (measured 1e-11 in displacement, 1e-9 in velocity)."""
+    from scipy.integrate import solve_ivp
+
+    Om, ze = np.array([50.0, 130.0]), np.array([0.01, 0.02])
+    psi = np.array([[0.8, -0.6]])
+    law = PolynomialLaw({"-q^3": -4e6, "q^2 q'": 3e3})
+    engine = CondensedHB(Om, ze, psi, np.zeros(2), [law])
+    H = 15
+    bb = epmc_backbone(engine, 0, np.geomspace(1e-3, 0.05, 6), H)
+    assert bb.frequency_hz[-1] > 1.35 * Om[0] / (2 * np.pi) and bb.damping_ratio[-1] > 1.2 * ze[0]
+    p = bb.points[-1]
+    k = np.arange(1, H + 1)
+    y0 = np.concatenate([p.modal[:, 0] + p.modal[:, 1::2].sum(axis=1), (p.modal[:, 2::2] * k * p.omega).sum(axis=1)])
+
+    def rhs(t, y):
+        eta, v = y[:2], y[2:]
+        u, ud = psi @ eta, psi @ v
+        f, _ = law.force(u, ud, law.initial_state(u.shape))
+        return np.concatenate([v, -(2 * ze * Om - p.xi) * v - Om**2 * eta - psi.T @ np.atleast_1d(f)])
+
+    sol = solve_ivp(rhs, (0.0, 2 * np.pi / p.omega), y0, method="DOP853", rtol=1e-12, atol=1e-14)
+    yT = sol.y[:, -1]
+    assert np.linalg.norm(yT[:2] - y0[:2]) < 1e-8 * np.linalg.norm(y0[:2])
+    assert np.linalg.norm(yT[2:] - y0[2:]) < 1e-7 * np.linalg.norm(y0[2:])
+
+
 def test_rig_backbone_agrees_with_the_rigs_own():
     """The rig's reduced beam (4 modes, Iwan joint in rotation, 9 harmonics, 256 samples): the
     condensed EPMC of mode 1 against the rig's uncondensed backbone (all modal harmonics as
