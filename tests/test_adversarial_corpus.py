@@ -58,6 +58,22 @@ def _h5_enum(folder):
 
 
 IMPORT = '[import]\nfs = 1024.0\nchannels = {channels}\n[[record]]\nfile = "{file}"\n{extra}\n'
+
+
+def _csv_dead(folder, value):
+    np.savetxt(folder / "d.csv", np.column_stack([T, F, np.full(T.size, value)]), delimiter=",", header="time,F,A",
+               comments="")
+
+
+def _mat_logical(folder):
+    from scipy.io import savemat
+
+    savemat(folder / "d.mat", {"F": F > 0, "A": A})
+
+
+STRUCT = 'force_column = "force"\nmode_shape = { force = 0.02, accel = 2.0 }\n'
+PHYSICAL = '[campaign]\ncoordinates = "physical"\n[structure]\n{structure}'
+
 MAP = '{ force = "F", accel = "A" }'
 FH_MAP = '{ frequency_hz = "f", force = "F", accel = "A", accel_phase = "P" }'
 FH = 'excitation = "first-harmonic"\n'
@@ -91,6 +107,33 @@ IMPORT_CASES = {
                                                            extra='excitation = "multisine"\nperiod_s = 100.0'),
                                        "period_s 100 is longer than the record"),
     "hdf5_enum": (_h5_enum, IMPORT.format(channels=MAP, file="d.h5", extra=""), "got an enumeration"),
+    # issue 24: accepted silently before
+    "dead_channel_zero": (lambda d: _csv_dead(d, 0.0), IMPORT.format(channels=MAP, file="d.csv", extra=""),
+                          r"d.csv \[record 0, channel 'accel'\]: zero at every sample"),
+    "dead_channel_constant": (lambda d: _csv_dead(d, 9.81), IMPORT.format(channels=MAP, file="d.csv", extra=""),
+                              r"d.csv \[record 0, channel 'accel'\]: constant \(9.81 at every sample\)"),
+    "stepped_sine_without_force": (_csv, IMPORT.format(channels='{ accel = "A" }', file="d.csv", extra=""),
+                                   r"d.csv \[record 0, channel 'force'\]: a stepped-sine record needs its force"),
+    "multisine_without_force": (_csv, IMPORT.format(channels='{ accel = "A" }', file="d.csv",
+                                                    extra='excitation = "multisine"\nperiod_s = 1.0'),
+                                r"channel 'force'\]: a multisine record needs its force column"),
+    "stepped_sine_without_response": (_csv, IMPORT.format(channels='{ force = "F" }', file="d.csv", extra=""),
+                                      r"channel 'accel'\]: a stepped-sine record needs a response column"),
+    "structure_unknown_key": (_csv, PHYSICAL.format(structure=STRUCT + "stifness = 3\n") +
+                              IMPORT.format(channels=MAP, file="d.csv", extra=""),
+                              r"\[structure\] unknown key 'stifness'"),
+    "structure_garbage_value": (_csv, PHYSICAL.format(structure='beam = "steel"\n') +
+                                IMPORT.format(channels=MAP, file="d.csv", extra=""), r"structure.beam"),
+    "structure_not_a_table": (_csv, 'structure = 3\n' + IMPORT.format(channels=MAP, file="d.csv", extra=""),
+                              r"\[structure\] must be a table, got 3"),
+    "structure_per_preload_missing": (_csv, PHYSICAL.format(structure="") + "[structure.5]\n" + STRUCT +
+                                      IMPORT.format(channels=MAP, file="d.csv", extra="preload = 7"),
+                                      r"\[record 0\]: no \[structure.7\] table for preload 7"),
+    "structure_file_reference": (_csv, PHYSICAL.format(structure="") + '[structure.5]\nfile = "s.toml"\n' +
+                                 IMPORT.format(channels=MAP, file="d.csv", extra="preload = 5"),
+                                 r"\[structure.5\] file: an import copies the \[structure\] tables"),
+    "mat_logical_channel": (_mat_logical, IMPORT.format(channels=MAP, file="d.mat", extra=""),
+                            r"d.mat \[channel 'force'\]: 'F' is a MATLAB logical \(true/false\) array"),
     # numpy's "input contained no data" warning was printed above jointid's own message
     "csv_empty": (lambda d: _csv(d, text=""), IMPORT.format(channels=MAP, file="d.csv", extra=""),
                   r"d.csv \[channel 'F'\]: missing column"),

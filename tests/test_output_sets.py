@@ -140,7 +140,7 @@ def test_import_replaces_its_own_earlier_import_without_stale_records(tmp_path, 
 def test_import_into_a_campaign_of_the_user_or_the_data_folder_is_refused(campaign, tmp_path, capsys):
     desc = _import_sources(tmp_path / "lab", 2)
     camp = tmp_path / "camp"
-    shutil.copytree(campaign, camp)
+    shutil.copytree(campaign, camp, ignore=shutil.ignore_patterns(MARKER))  # the user's own, not a simulate set
     before = _tree(camp)
     _refused(["import", desc, "--out", camp], capsys, "did not write")
     assert _tree(camp) == before

@@ -362,8 +362,10 @@ def _demo(args) -> int:
 
 def _import(args) -> int:
     from .io.importer import import_campaign
+    from .modal.structure import Structure
 
-    res = import_campaign(args.description, args.out)
+    # the [structure] tables are checked (as identify reads them) before any file is read
+    res = import_campaign(args.description, args.out, check_structure=lambda t, src: Structure.from_mapping(t, src))
     print(res.report())
     return EXIT_PARTIAL if res.failed else EXIT_OK
 

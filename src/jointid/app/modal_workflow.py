@@ -16,21 +16,47 @@ import numpy as np
 
 from ..errors import IdentificationError
 
-__all__ = ["ModalRun", "parse_bands", "modal_workflow", "write_modal"]
+__all__ = ["ModalRun", "parse_bands", "check_bands", "modal_workflow", "write_modal"]
 
 
 def parse_bands(text: str) -> list:
-    """Explicit fit bands in Hz: ``"24-29,140-175"`` -> ``[(24.0, 29.0), (140.0, 175.0)]``."""
+    """Explicit fit bands in Hz: ``"24-29,140-175"`` -> ``[(24.0, 29.0), (140.0, 175.0)]``.
+
+    The bands are checked by :func:`check_bands` (finite, ``0 < LO < HI``, no two sharing frequencies).
+    """
     bands = []
     for part in text.split(","):
         try:
             lo, hi = (float(v) for v in part.strip().split("-"))
         except ValueError:
             raise IdentificationError(f"--bands: expected LO-HI pairs in Hz separated by commas, got {part!r}") from None
-        if not 0 < lo < hi:
-            raise IdentificationError(f"--bands: expected 0 < LO < HI, got {part!r}")
         bands.append((lo, hi))
-    return bands
+    return check_bands(bands)
+
+
+def check_bands(bands) -> list:
+    """The fit bands ``[(lo, hi), ...]`` in Hz, refused when one is not ``0 < lo < hi`` (finite) or two overlap.
+
+    A band given twice, or two bands sharing frequencies, would fit one mode twice and report
+    it as two; bands that only touch (``hi`` of one equals ``lo`` of the next) are accepted.
+    """
+    out = []
+    for band in bands:
+        try:
+            lo, hi = (float(v) for v in band)
+        except (TypeError, ValueError):
+            raise IdentificationError(f"--bands: expected (LO, HI) pairs in Hz, got {band!r}") from None
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+            raise IdentificationError(f"--bands: expected finite 0 < LO < HI, got {lo:g}-{hi:g}")
+        out.append((lo, hi))
+    order = sorted(range(len(out)), key=lambda i: out[i])
+    for a, b in zip(order, order[1:]):
+        (lo1, hi1), (lo2, hi2) = out[a], out[b]
+        if lo2 < hi1:
+            what = "is given twice" if (lo1, hi1) == (lo2, hi2) else f"overlaps band {b + 1} ({lo2:g}-{hi2:g} Hz)"
+            raise IdentificationError(f"--bands: band {a + 1} ({lo1:g}-{hi1:g} Hz) {what}; each band holds one "
+                                      f"mode, so the bands may not share frequencies")
+    return out
 
 
 @dataclass(frozen=True)
@@ -108,6 +134,10 @@ def modal_workflow(structure_file, *, frf=None, response=None, modes=3, bands=No
     from ..io.campaign import read_toml
     from ..modal.structure import Structure
 
+    if isinstance(bands, str):  # refused before any work
+        bands = parse_bands(bands)
+    elif bands is not None:
+        bands = check_bands(bands)
     data = read_toml(structure_file, "structure file")
     structure = Structure.from_mapping(data, source=str(structure_file))
     if echo is not None:
@@ -117,8 +147,6 @@ def modal_workflow(structure_file, *, frf=None, response=None, modes=3, bands=No
     from ..io.campaign import RecordSpec, read_record
     from ..signal.frf import fit_modes, h1_estimate
 
-    if isinstance(bands, str):
-        bands = parse_bands(bands)
     frf = Path(frf)
     column = response or next(iter(structure.sensors))
     spec = RecordSpec(0, str(frf), frf.resolve(), None, None, None)

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ManifestError, unknown_key_message
+from ..errors import ConvergenceError, ManifestError, unknown_key_message
 from ..identify.terms import library
 from ..io.campaign import read_toml, write_campaign, write_csv_record
 from ..simulate.model import SingleModeModel
@@ -208,6 +208,7 @@ class SimulationConfig:
     seed: int
     write_frequency: bool
     n_harmonics: int
+    source: str = "config"  # where the configuration came from (named in errors)
 
 
 def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
@@ -251,12 +252,94 @@ def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
         seed=int(acq.get("seed", 0)),
         write_frequency=bool(acq.get("write_frequency", True)),
         n_harmonics=int(acq.get("n_harmonics", 9)),
+        source=source,
     )
     if cfg.fs <= 2 * omegas.max() / (2 * np.pi):
         raise ManifestError(f"{source}: fs = {cfg.fs} Hz is below twice the highest excitation frequency")
     if cfg.periods < 2:
         raise ManifestError(f"{source}: periods must be at least 2, got {cfg.periods}")
+    for preload, model in parsed:
+        _check_damping(model, model.coefficients, _model_where(source, preload, len(parsed)))
     return cfg
+
+
+# ----------------------------------------------------------------------------------------------------------
+# a physical model: a passive joint, bounded motion
+
+def _model_where(source, preload, n_models) -> str:
+    return f"{source}: [model]" + (f" (preload {preload!r})" if n_models > 1 else "")
+
+
+def _key(model, coefficient) -> str:
+    """How a coefficient is set in a ``[model]`` table (its amplitude law, or ``coefficients.<name>``)."""
+    term = next(t for t in model.terms if t.coefficient == coefficient)
+    for k in model.amplitude_laws:
+        if k in (term.coefficient, term.name):
+            return f"amplitude_laws.{k}"
+    return f"coefficients.{coefficient}"
+
+
+def _check_damping(model, theta, loc, state=None) -> None:
+    """Every damping coefficient >= 0: the joint dissipates energy (each damping term of the library
+    does work against the motion when its coefficient is positive; a negative one feeds energy in)."""
+    for t, c in zip(model.terms, theta):
+        if t.kind == "damping" and c < 0 and (state is not None or _key(model, t.coefficient).startswith("coeff")):
+            at = "" if state is None else (f" at the steady state of amplitude q_max = {state.q_max:.4g} "
+                                           f"({state.omega / (2 * np.pi):.6g} Hz, force level {state.force_amplitude:g})")
+            raise ManifestError(f"{loc} {_key(model, t.coefficient)}: the damping coefficient {t.coefficient} of "
+                                f"term {t.name!r} is {c:.4g}{at}; a joint dissipates energy, so it must be >= 0 "
+                                f"(negative damping feeds energy into the motion: no physical steady state)")
+
+
+def _stiffness_force(model, theta, q) -> np.ndarray:
+    """The restoring force at rest velocity, of the stiffness terms only."""
+    theta = np.where([t.kind == "stiffness" for t in model.terms], theta, 0.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return model.terms.restoring_force(q, np.zeros_like(q), theta)
+
+
+def _well_edge(model, theta, q_reach) -> float | None:
+    """The smallest ``|q| <= q_reach`` where the restoring force stops pointing back to rest, or None.
+
+    Inside that distance the potential rises in both directions (a well); a steady state reaching
+    beyond it is not a bounded motion of the model (the system escapes over the edge), even when
+    harmonic balance finds a solution of its equations there.
+    """
+    u = q_reach * np.concatenate([np.logspace(-15, 0, 1500), np.linspace(0.0, 1.0, 1001)[1:]])
+    u.sort()
+    edge = None
+    for sign in (1.0, -1.0):
+        r = sign * _stiffness_force(model, theta, sign * u)
+        bad = np.flatnonzero(~(r > 0))
+        if bad.size:
+            edge = u[bad[0]] if edge is None else min(edge, u[bad[0]])
+    return edge
+
+
+def _turning_terms(model, theta, q) -> str:
+    """The stiffness terms pulling away from rest at ``q`` (the ones that open the well)."""
+    out = []
+    for t, c in zip(model.terms, theta):
+        if t.kind == "stiffness" and c != 0 and np.sign(q) * c * float(t(np.array([q]), np.zeros(1))[0]) < 0:
+            out.append(f"{_key(model, t.coefficient)} = {c:.4g} (term {t.name!r})")
+    return ", ".join(out) or "the stiffness terms"
+
+
+def _check_bounded(model, state, loc) -> None:
+    """The steady state stays inside the well of the restoring force, and dissipates."""
+    theta = np.asarray(state.theta, float)
+    _check_damping(model, theta, loc, state)
+    t = np.linspace(0.0, 2 * np.pi / state.omega, 512, endpoint=False)
+    q = state.q(t)
+    reach = float(np.max(np.abs(q)))
+    edge = _well_edge(model, theta, reach)
+    if edge is not None and edge < reach * (1 - 1e-9):
+        raise ManifestError(
+            f"{loc}: the steady state at {state.omega / (2 * np.pi):.6g} Hz, force level {state.force_amplitude:g}, "
+            f"reaches |q| = {reach:.4g}; the restoring force stops pulling back to rest by |q| = {edge:.4g} "
+            f"({_turning_terms(model, theta, edge)}); no bounded motion of that size exists (the system escapes "
+            f"the well): the model is not physical at this force level; lower the force levels or the nonlinear "
+            f"coefficient")
 
 
 def simulate_steady_states(cfg: SimulationConfig, progress=False):
@@ -269,7 +352,19 @@ def simulate_steady_states(cfg: SimulationConfig, progress=False):
 
     bar = progress_bar(len(jobs), "steady states", enabled=progress)  # plain lines when stderr is no terminal
     for preload, model, F in jobs:
-        frf = frequency_response(model, F, cfg.omegas, n_harmonics=cfg.n_harmonics, stability=False)
+        loc = _model_where(cfg.source, preload, len(cfg.models))
+        try:
+            frf = frequency_response(model, F, cfg.omegas, n_harmonics=cfg.n_harmonics, stability=False)
+        except ConvergenceError as exc:
+            edge = _well_edge(model, np.asarray(model.coefficients, float), F / model.omega1 ** 2)
+            if edge is None:
+                raise
+            raise ConvergenceError(f"{exc}\n{loc}: the restoring force stops pulling back to rest by |q| = "
+                                   f"{edge:.4g} ({_turning_terms(model, model.coefficients, edge)}), below the "
+                                   f"static deflection {F / model.omega1 ** 2:.4g} of force level {F:g}: the model "
+                                   f"cannot hold this force (it escapes the well)") from None
+        for state in frf.states:
+            _check_bounded(model, state, loc)
         out.append((preload, F, frf))
         bar.update(1)
     bar.close()
@@ -277,11 +372,26 @@ def simulate_steady_states(cfg: SimulationConfig, progress=False):
 
 
 def simulate_campaign(config, out_dir, progress=False) -> Path:
-    """Write a campaign folder (``campaign.toml`` + ``records/NNNN.csv``) from a configuration."""
-    from ..simulate.synth import synthesize_record
+    """Write a campaign folder (``campaign.toml`` + ``records/NNNN.csv``) from a configuration.
+
+    The campaign is one output set of kind ``simulate`` (:func:`jointid.io.outputset.output_set`):
+    it replaces an earlier simulated campaign in ``out_dir`` as a whole (no stale records of a
+    longer earlier run), and a folder holding anything else (a campaign written by hand or
+    imported, results beside the records, the configuration file) is refused before any work.
+    """
+    from ..io.outputset import output_set
 
     cfg = config if isinstance(config, SimulationConfig) else load_simulation_config(config)
-    out = Path(out_dir)
+    inputs = () if isinstance(config, (SimulationConfig, dict)) else (config,)
+    final = Path(out_dir)
+    with output_set(final, kind="simulate", inputs=inputs) as out:
+        _write_campaign(cfg, out, progress)
+    return final
+
+
+def _write_campaign(cfg: SimulationConfig, out: Path, progress=False) -> None:
+    from ..simulate.synth import synthesize_record
+
     rng = np.random.default_rng(cfg.seed)
     entries = []
     i = 0
@@ -301,4 +411,3 @@ def simulate_campaign(config, out_dir, progress=False) -> Path:
             )
             i += 1
     write_campaign(out, cfg.name, entries, coordinates="modal")
-    return out

@@ -68,7 +68,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import JointidError, ManifestError, RecordError, RecordFileNotFoundError, where
+from ..conventions import STRUCTURE_KEYS
+from ..errors import JointidError, ManifestError, RecordError, RecordFileNotFoundError, unknown_key_message, where
 from .campaign import (
     COORDINATES,
     CSV_TIME_RTOL,
@@ -77,6 +78,7 @@ from .campaign import (
     _excitation,
     _label,
     _number,
+    _same_label,
     check_keys,
     check_regular_file,
     read_toml,
@@ -101,6 +103,10 @@ FH_TIME_KEYS = ("frequency_hz", "period_s", "time", "fs", "window_s")
 COLUMN_KEYS = ("channel", "unit", "scale")
 #: Factors from the units a column map may name to SI (:data:`jointid.io.units.UNITS` holds their dimensions).
 UNIT_FACTORS = {u: f for u, (f, _) in UNITS.items()}
+#: Response columns of a record in modal coordinates: what its excitation is identified from
+#: (stepped sines and ring-downs by the acceleration; multisine and random records by any of them).
+MODAL_RESPONSES = {"stepped-sine": ("accel",), "ringdown": ("accel",),
+                   "multisine": ("accel", "velocity", "displacement"), "random": ("accel", "velocity", "displacement")}
 
 __all__ = ["ImportResult", "import_campaign", "read_source"]
 
@@ -327,6 +333,7 @@ def _validate(d: dict, desc: Path):
         raise ManifestError(f"{desc}: [campaign] coordinates = \"physical\" needs a [structure] table (the "
                             "beam model and the sensor positions, copied into the campaign); got "
                             f"{'none' if 'structure' not in d else repr(d['structure'])}")
+    structures = _check_structure(d.get("structure"), desc)
     if not isinstance(head.get("name", ""), str):
         raise ManifestError(f"{desc}: [campaign] name must be a text, got {head.get('name')!r}")
     defaults = _channel_map(imp.get("channels", {}), f"{desc}: [import] ")
@@ -355,6 +362,10 @@ def _validate(d: dict, desc: Path):
     for i, entry in enumerate(records):
         rctx = f"{desc} [record {i}]: "
         check_keys(entry, RECORD_KEYS, rctx)
+        if structures is not None and "" not in structures and \
+                not any(_same_label(label, entry.get("preload")) for label in structures):
+            raise ManifestError(f"{rctx}no [structure.{entry.get('preload')}] table for preload "
+                                f"{entry.get('preload')!r}; structures are given for {list(structures)}")
         _sources(entry, i, defaults, ctx)
         f = _number(entry.get("frequency_hz"), "frequency_hz", rctx)
         if f is not None and f <= 0:
@@ -376,7 +387,87 @@ def _validate(d: dict, desc: Path):
             raise ManifestError(f"{rctx}'time' must be the name of a time column or dataset, got {entry['time']!r}")
     if "time" in imp and (not isinstance(imp["time"], str) or not imp["time"]):
         raise ManifestError(f"{desc}: [import] time must be the name of a time column or dataset, got {imp['time']!r}")
-    return head, imp, defaults, records, data_folder
+    return head, imp, defaults, records, data_folder, structures
+
+
+def _check_structure(structure, desc: Path):
+    """The ``[structure]`` tables of a description (``{"": table}`` or ``{preload: table}``), or None.
+
+    Checked like the campaign loader reads them (:func:`jointid.io.campaign.load_campaign`): one
+    table of known keys for every preload, or tables keyed by preload; a table given by file name
+    is refused, since the import copies the tables into the campaign and not the files.  The
+    values are checked by the ``check_structure`` of :func:`import_campaign`.
+    """
+    if structure is None:
+        return None
+    if not isinstance(structure, dict):
+        raise ManifestError(f"{desc}: [structure] must be a table, got {structure!r}"[:300])
+    if not structure:
+        raise ManifestError(f"{desc}: [structure] is empty; give the structure's keys "
+                            f"({', '.join(sorted(STRUCTURE_KEYS))}) or remove the table")
+    if set(structure) & STRUCTURE_KEYS:
+        for k in structure:
+            if k not in STRUCTURE_KEYS:
+                raise ManifestError(f"{desc}: [structure] {unknown_key_message(k, STRUCTURE_KEYS)}")
+        return {"": structure}
+    for label, table in structure.items():
+        ctx = f"{desc}: [structure.{label}] "
+        if not isinstance(table, dict):
+            raise ManifestError(f"{desc}: [structure] {unknown_key_message(label, STRUCTURE_KEYS)}; or a "
+                                f"per-preload table [structure.<preload>], got {label} = {table!r}"[:400])
+        if "file" in table:
+            raise ManifestError(f"{ctx}file: an import copies the [structure] tables into the campaign, not the "
+                                f"files they name; give the structure's keys in the table itself")
+        if not table:
+            raise ManifestError(f"{ctx}is empty; give the structure's keys ({', '.join(sorted(STRUCTURE_KEYS))})")
+        for k in table:
+            if k not in STRUCTURE_KEYS:
+                raise ManifestError(f"{ctx}{unknown_key_message(k, STRUCTURE_KEYS)}")
+    return {str(label): table for label, table in structure.items()}
+
+
+def _force_column(structures, entry) -> str:
+    """The force column of a record: the structure's ``force_column`` (physical campaigns), else ``force``."""
+    if not structures:
+        return "force"
+    table = structures.get("")
+    if table is None:
+        table = next((t for label, t in structures.items() if _same_label(label, entry.get("preload"))), {})
+    col = table.get("force_column", "force")
+    return col if isinstance(col, str) and col else "force"
+
+
+def _check_columns(entry, i, sources, coordinates, structures) -> None:
+    """A record's column map holds what its excitation is identified from: the force (all but a
+    ring-down) and, in modal coordinates, the response; else the record fails, named."""
+    kind = entry.get("excitation", "stepped-sine")
+    mapped = [k for _, ch, _, _ in sources for k in ch]
+    first = sources[0][0]
+    force = _force_column(structures, entry) if coordinates == "physical" else "force"
+    if kind != "ringdown" and force not in mapped:
+        raise RecordError(f"{where(first, i, force)}a {kind} record needs its force column {force!r} (the "
+                          f"excitation); the column map gives {mapped}; map it, e.g. channels = {{ {force} = "
+                          f"\"<channel>\", ... }}, or mark a free decay with excitation = \"ringdown\"")
+    responses = MODAL_RESPONSES.get(kind, ()) if coordinates == "modal" else ()
+    if responses and not any(r in mapped for r in responses):
+        raise RecordError(f"{where(first, i, responses[0])}a {kind} record needs a response column "
+                          f"({' or '.join(repr(r) for r in responses)}); the column map gives {mapped}")
+
+
+def _check_live(rec: Channels, files: dict, i: int) -> None:
+    """Every channel varies: a constant or all-zero channel is a dead or unconnected sensor (the record fails).
+
+    The rule of the identification's check (:func:`jointid.signal.checks.check_live`, a floor
+    above this module), here before the record is written, naming the source file and channel.
+    """
+    for k in rec.names:
+        x = rec.data[k]
+        lo, hi = float(np.min(x)), float(np.max(x))
+        if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):
+            value = float(np.median(x))
+            what = "zero at every sample" if value == 0 else f"constant ({value:.6g} at every sample)"
+            raise RecordError(f"{where(files.get(k, str(rec.source)), i, k)}{what}; a dead, stuck or unconnected "
+                              f"channel carries no signal, so the record is not imported")
 
 
 def _source_path(data_folder: Path, rel: str, i: int) -> Path:
@@ -431,24 +522,31 @@ def _check_time_span(rec: Channels, entry: dict, i: int) -> None:
                           "record holds at least one whole period")
 
 
-def import_campaign(description, out_dir) -> ImportResult:
+def import_campaign(description, out_dir, *, check_structure=None) -> ImportResult:
     """Write the campaign described by ``description`` (a TOML file) into ``out_dir``.
 
     The campaign is written as one output set of kind ``import``
     (:func:`jointid.io.outputset.output_set`): it replaces an earlier import into ``out_dir``
     as a whole (no stale records), and a folder holding anything else (a campaign written by
     hand, the data folder, the description) is refused before any file is read.
+
+    ``check_structure(table, source)``, when given, checks each ``[structure]`` table before
+    any file is read (the command passes :meth:`jointid.modal.structure.Structure.from_mapping`,
+    a floor above this module); it raises a :class:`~jointid.errors.JointidError` naming the key.
     """
     desc = Path(description)
     d = read_toml(desc, "import description")
-    head, imp, defaults, records, data_folder = _validate(d, desc)
+    head, imp, defaults, records, data_folder, structures = _validate(d, desc)
+    if check_structure is not None and structures:
+        for label, table in structures.items():
+            check_structure(table, f"{desc} [structure{'.' + label if label else ''}]")
     final = Path(out_dir)
     with output_set(final, kind="import", inputs=(desc, data_folder)) as out:
-        written, failed = _import_records(d, desc, head, imp, defaults, records, data_folder, out)
+        written, failed = _import_records(d, desc, head, imp, defaults, records, data_folder, out, structures)
     return ImportResult(final, tuple(written), tuple(failed))
 
 
-def _import_records(d, desc, head, imp, defaults, records, data_folder, out):
+def _import_records(d, desc, head, imp, defaults, records, data_folder, out, structures=None):
     """Read the sources and write the records and ``campaign.toml`` into ``out``."""
     ctx = f"{desc} "
     entries, written, failed = [], [], []
@@ -467,9 +565,12 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out):
             written.append((i, rel))
             continue
         try:
-            parts = []
-            for f, ch, t_name, s_fs in _sources(entry, i, defaults, ctx):
+            parts, files = [], {}
+            sources = _sources(entry, i, defaults, ctx)
+            _check_columns(entry, i, sources, head.get("coordinates", "modal"), structures)
+            for f, ch, t_name, s_fs in sources:
                 names, factors = _split_map(ch)
+                files.update((k, f) for k in names)
                 part = read_source(_source_path(data_folder, f, i), names,
                                    fs=s_fs if s_fs is not None else entry.get("fs", imp.get("fs")),
                                    time=t_name if t_name is not None else entry.get("time", imp.get("time")))
@@ -489,6 +590,7 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out):
                 rec = Channels(rec.time[keep], {k: rec.data[k][keep] for k in rec.names},
                                dict(rec.units), source=rec.source)
             _check_time_span(rec, entry, i)
+            _check_live(rec, files, i)
             rel = f"records/{len(written):04d}.csv"
             write_csv_record(out / rel, rec.time, {k: rec.data[k] for k in rec.names})
         except ManifestError:

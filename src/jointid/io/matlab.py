@@ -191,6 +191,7 @@ def _load(path: Path, names: list[str]) -> dict[str, Any]:
             squeeze_me=True,
             struct_as_record=False,
             variable_names=names,
+            mat_dtype=True,  # MATLAB's own class: a logical array reads as bool, not as uint8 0/1 samples
         )
     except Exception as exc:
         raise RecordError(f"{where(path)}cannot read the MAT file: {exc}") from exc
@@ -259,6 +260,11 @@ def _orient(
     path: Path, arr: np.ndarray, index: str | None, n: int | None, channel: str, ref: str,
     labels: list[list[str]] | None,
 ) -> np.ndarray:
+    if arr.dtype == bool:
+        raise RecordError(
+            f"{where(path, channel=channel)}{ref!r} is a MATLAB logical (true/false) array, not samples "
+            f"of a signal; it is not converted to 0/1 values (save the measured channel as a numeric array)"
+        )
     if arr.dtype == object or not np.issubdtype(arr.dtype, np.number):
         raise RecordError(
             f"{where(path, channel=channel)}expected a numeric array for {ref!r}, got "
