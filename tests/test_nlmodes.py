@@ -182,3 +182,51 @@ def test_predict_writes_the_backbones_of_the_modes_in_the_band(tmp_path):
         pk = p["peaks"]["B.w10"]
         f_bb = np.interp(np.log(pk["peak_amplitude"]), np.log(ra), f)
         assert abs(pk["peak_frequency_hz"] / f_bb - 1) < 0.015
+
+
+MODAL_TOML = """
+[model]
+name = "two modes"
+
+[modal]
+frequencies_hz = [20.0, 22.0]
+damping_ratios = [0.01, 0.01]
+dof_names = ["a", "b", "tip"]
+shapes = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0]]
+
+[[joint]]
+name = "slip"
+dofs = ["a", "b"]
+law = "jenkins"
+parameters = { kt = 3000.0, Fs = 0.02 }
+
+[force]
+dofs = { "tip" = 1.0 }
+
+[response]
+dofs = ["tip"]
+
+[predict]
+frequency_range_hz = [15.0, 30.0]
+force_levels = [0.05, 0.2]
+n_harmonics = 3
+"""
+
+
+def test_predict_lists_a_mode_the_force_does_not_excite(tmp_path):
+    """Modal data: mode 2 is neither loaded nor moved by the joint, so it has no amplitude scale:
+    listed in settings and the report, not computed; mode 1 softens from its stuck frequency
+    sqrt(20^2 + kt / (2 pi)^2) Hz as the Jenkins joint slips."""
+    from jointid.app.structure_predict import predict_structure
+
+    p = tmp_path / "MODEL.toml"
+    p.write_text(MODAL_TOML, encoding="utf-8")
+    res = predict_structure(p)
+    assert res.settings["backbone_modes"] == [1] and res.settings["backbone_modes_not_excited"] == [2]
+    assert "not excited" in res.report()
+    (b,) = res.backbones
+    assert b.mode == 1 and b.error == ""
+    stuck = np.sqrt(20.0**2 + 3000.0 / (2 * np.pi) ** 2)
+    assert b.frequency_hz[0] == pytest.approx(stuck, rel=1e-9)  # below the slip amplitude: exactly stuck
+    assert b.frequency_hz[-1] < 20.0 * 1.05 and np.all(np.diff(b.frequency_hz) <= 1e-12)
+    assert res.summary()["backbones"][0]["joint_amplitude"]["slip"][-1] > 10 * 0.02 / 3000.0

@@ -158,6 +158,10 @@ class StructurePrediction:
             out.append(f"F = {lv.force_level:g}: {pk}; folds at {folds} Hz; {lv.n_points} points, "
                        f"{lv.newton_iterations_mean:.2g} Newton iterations per point, residual <= "
                        f"{lv.max_residual:.1e}, {1e3 * lv.seconds_per_point:.3g} ms per point")
+        skipped = self.settings.get("backbone_modes_not_excited")
+        if skipped:
+            out.append(f"nonlinear modes {', '.join(map(str, skipped))} in the band: not excited by the force, "
+                       "no backbone computed")
         for b in self.backbones:
             head = (f"nonlinear mode {b.mode} (linear {b.linear_frequency_hz:.6g} Hz, damping ratio "
                     f"{b.linear_damping_ratio:.3g}): ")
@@ -266,7 +270,10 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
         out.append(lv)
         if progress:
             progress(f"F = {F:g}: {len(pts)} points, {len(lv.folds_hz)} fold(s)")
-    backbones = [_mode_backbone(st, spec, r, top, H, N, response) for r, top in _backbone_plan(st, band, out)]
+    plan = _backbone_plan(st, band, out)
+    settings["backbone_modes"] = [r + 1 for r, top in plan if top > 0]
+    settings["backbone_modes_not_excited"] = [r + 1 for r, top in plan if not top > 0]
+    backbones = [_mode_backbone(st, spec, r, top, H, N, response) for r, top in plan if top > 0]
     if progress:
         for b in backbones:
             progress(f"nonlinear mode {b.mode}: {len(b.amplitude)} points" + (f"; {b.error}" if b.error else ""))
@@ -279,6 +286,7 @@ def _backbone_plan(st, band, levels):
     The elastic modes with a natural frequency in the band, else the elastic mode nearest to
     it; amplitudes up to 1.5 times the largest first-harmonic modal amplitude on the computed
     curves (the linear resonance amplitude at the largest force where no curve was computed).
+    A mode the force does not excite gets no amplitude scale (0): it is listed, not computed.
     """
     e = st.engine
     f = e.omega / (2 * np.pi)
@@ -287,10 +295,13 @@ def _backbone_plan(st, band, levels):
     if not modes and elastic.size:
         modes = [int(elastic[np.argmin(np.minimum(abs(f[elastic] - band[0]), abs(f[elastic] - band[1])))])]
     plan = []
+    every = max([float(lv.modal_max.max()) for lv in levels if lv.modal_max is not None] or [0.0])
     for r in modes:
         reached = [float(lv.modal_max[r]) for lv in levels if lv.modal_max is not None]
-        if reached and max(reached) > 0:
+        if reached and max(reached) > 1e-9 * every:
             top = 1.5 * max(reached)
+        elif reached:
+            top = 0.0
         else:
             Fmax = max(lv.force_level for lv in levels)
             d = 2 * e.zeta[r] * e.omega[r] ** 2
@@ -302,9 +313,6 @@ def _backbone_plan(st, band, levels):
 def _mode_backbone(st, spec, r, top, H, N, response, n_points=20) -> ModeBackbone:
     e = st.engine
     b = ModeBackbone(r + 1, float(e.omega[r] / (2 * np.pi)), float(e.zeta[r]))
-    if not (top > 0 and math.isfinite(top)):
-        b.error = "no amplitude scale: the force does not excite this mode"
-        return b
     t0 = time.process_time()
     bb = epmc_backbone(e, r, np.geomspace(1e-3 * top, top, n_points), H, n_time=N, partial=True)
     cost = time.process_time() - t0
