@@ -44,8 +44,10 @@ from ..signal.harmonics import StateSignals
 
 __all__ = ["HystereticForceStateMapping", "HystereticFit", "LAWS", "first_harmonic_peak", "first_harmonic_response"]
 
-#: Joint laws this estimator fits.
-LAWS = ("jenkins", "iwan4")
+#: Joint laws this estimator fits; ``"<law>+cubic"`` adds a cubic spring ``-k3 q^3`` beside the law.
+LAWS = ("jenkins", "iwan4", "jenkins+cubic", "iwan4+cubic")
+#: Suffix of a law name that adds the cubic spring.
+CUBIC = "+cubic"
 #: Harmonics used to estimate a channel's noise level (fewer when the sampling does not allow them).
 NOISE_HARMONICS = 25
 _Z95 = 1.959963984540054
@@ -140,12 +142,12 @@ class _JenkinsShape:
     def grid(self, qmax):
         return [np.array([e]) for e in np.linspace(math.log(qmax.min() / 30), math.log(qmax.max() * 2), 28)]
 
-    def physical(self, p, cov):
-        """(names, values, covariance, units) of the physical parameters from ``(k, c, kt, log a_s)``."""
+    def physical(self, p):
+        """(names, values, Jacobian from ``p``, units) of the physical parameters from ``(k, c, kt, log a_s)``."""
         k, c, kt, la = p
         a_s = math.exp(la)
         J = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, a_s, kt * a_s], [0, 0, 0, a_s]], float)
-        return (("k", "c", "kt", "Fs", "slip_displacement"), np.array([k, c, kt, kt * a_s, a_s]), J @ cov @ J.T,
+        return (("k", "c", "kt", "Fs", "slip_displacement"), np.array([k, c, kt, kt * a_s, a_s]), J,
                 ("N/m", "N s/m", "N/m", "N", "m"))
 
 
@@ -186,7 +188,7 @@ class _Iwan4Shape:
                     out.append(np.array([math.log(pm), chi, beta]))
         return out
 
-    def physical(self, p, cov):
+    def physical(self, p):
         k, c, kt = p[:3]
         eta = p[3:]
         r = self._fs_per_kt(eta)
@@ -205,7 +207,7 @@ class _Iwan4Shape:
         J[4, 4] = J[5, 5] = 1.0
         J[6, 3] = pm
         return (("k", "c", "K_T", "F_S", "chi", "beta", "phi_max"), np.array([k, c, kt, kt * r, eta[1], eta[2], pm]),
-                J @ cov @ J.T, ("N/m", "N s/m", "N/m", "N", "1", "1", "m"))
+                J, ("N/m", "N s/m", "N/m", "N", "1", "1", "m"))
 
 
 _SHAPES = {"jenkins": _JenkinsShape, "iwan4": _Iwan4Shape}
@@ -265,21 +267,52 @@ class HystereticFit:
     def c(self) -> float:
         return self.get("c")
 
+    @property
+    def k3(self) -> float:
+        """Cubic spring beside the law (``-k3 q^3``; 0 for a law fitted without it)."""
+        return self.get("k3") if "k3" in self.names else 0.0
+
+    @property
+    def stiffness0(self) -> float:
+        """Stiffness at vanishing amplitude: ``k`` plus the law's stuck stiffness."""
+        return self.k + float(self.law.first_harmonic(1e-15)[0])
+
     def restoring_force(self, u_t, v_t):
-        """``k u + c v + f_joint(u)`` over one sampled period (time on the last axis)."""
-        return self.k * np.asarray(u_t) + self.c * np.asarray(v_t) + self.law.aft(u_t, jacobian=False)[0]
+        """``k u + c v + f_joint(u) - k3 u^3`` over one sampled period (time on the last axis)."""
+        u = np.asarray(u_t)
+        return self.k * u + self.c * np.asarray(v_t) + self.law.aft(u_t, jacobian=False)[0] - self.k3 * u**3
 
     def first_harmonic(self, a):
         """``(K(a), L(a))``: stiffness and loss stiffness of the model's first harmonic at amplitude ``a``."""
         k_eq, k_loss = self.law.first_harmonic(a)
-        return self.k + k_eq, k_loss
+        return self.k + k_eq - 0.75 * self.k3 * np.asarray(a) ** 2, k_loss
 
     def peak(self, force_amplitude):
         """Peak of the frequency response at a force amplitude by first-harmonic balance.
 
         See :func:`first_harmonic_peak`; returns ``(peak_frequency_hz, peak_q_max)``.
         """
-        return first_harmonic_peak(self.k, self.c, self.law, force_amplitude)
+        return first_harmonic_peak(self.k, self.c, self.law, force_amplitude, k3=self.k3)
+
+    def loop(self, signals, n_time=512):
+        """A record's filtered hysteresis loop (:class:`~jointid.identify.hysteresis.HysteresisLoop`) with this model.
+
+        Over one period of the record's harmonic fits (``n_time`` equal steps; the force and
+        the acceleration on the harmonics ``1..H`` of the fit, as in the polynomial models'
+        filtered loops), the measured ``Q - q'' - K0 q`` against the model's
+        ``k q + c q' + f_joint(q) - k3 q^3 - K0 q``, with ``K0`` the model's stiffness at
+        vanishing amplitude (:attr:`stiffness0`: the linear part left out of both, as
+        ``omega1^2 q`` is for the polynomial models).  The law's force is its periodic
+        (Masing) force over that period.
+        """
+        from .hysteresis import HysteresisLoop
+
+        r = _prepare(signals, 0)
+        E = _basis(2 * np.pi * np.arange(int(n_time)) / int(n_time), 1.0, r.H)
+        q, v = E @ r.d, E @ r.v
+        k0 = self.stiffness0
+        measured = E[:, 1:] @ r.y - k0 * q
+        return HysteresisLoop(q, measured, self.restoring_force(q, v) - k0 * q, True, float(signals.frequency_hz))
 
     def summary(self) -> dict:
         return {
@@ -308,10 +341,11 @@ class HystereticFit:
         return "\n".join(lines)
 
 
-def first_harmonic_peak(k, c, law, force_amplitude):
+def first_harmonic_peak(k, c, law, force_amplitude, *, k3=0.0):
     """Peak ``(frequency_hz, q_max)`` of ``q'' + c q' + k q + f_joint(q) = Q cos(omega t)`` (first harmonic).
 
-    With the law's first-harmonic stiffness ``K(a) = k + k_eq(a)`` and loss ``L(a) = k_loss(a)``,
+    With the law's first-harmonic stiffness ``K(a) = k + k_eq(a) - 3/4 k3 a^2`` (``k3``: a cubic spring
+    ``-k3 q^3`` beside the law) and loss ``L(a) = k_loss(a)``,
     the response amplitude ``a`` at ``omega`` solves ``Q^2 = a^2 ((K - omega^2)^2 + (c omega + L)^2)``.
     The peak is the largest ``a`` for which some ``omega`` solves it: ``a*`` with
     ``min_omega a^2 (...) = Q^2``, found by a root in ``a`` (folds need no continuation).
@@ -320,7 +354,7 @@ def first_harmonic_peak(k, c, law, force_amplitude):
 
     def best(a):
         k_eq, k_loss = law.first_harmonic(a)
-        K, L = k + float(k_eq), float(k_loss)
+        K, L = k + float(k_eq) - 0.75 * k3 * a * a, float(k_loss)
         # d/dw [(K - w^2)^2 + (c w + L)^2] = 0: 4 w^3 + (2 c^2 - 4 K) w + 2 c L = 0
         roots = np.roots([4.0, 0.0, 2.0 * c * c - 4.0 * K, 2.0 * c * L])
         ws = [r.real for r in roots if abs(r.imag) <= 1e-9 * abs(r) and r.real > 0]
@@ -343,7 +377,7 @@ def first_harmonic_peak(k, c, law, force_amplitude):
     return best(a)[1] / (2 * np.pi), a
 
 
-def first_harmonic_response(k, c, law, force_amplitude, omega, a_range=None, n_grid=400):
+def first_harmonic_response(k, c, law, force_amplitude, omega, a_range=None, n_grid=400, *, k3=0.0):
     """Steady-state first-harmonic amplitudes at one forcing frequency ``omega`` [rad/s], every branch.
 
     The roots ``a`` of ``a^2 ((K(a) - omega^2)^2 + (c omega + L(a))^2) = Q^2`` (see
@@ -356,7 +390,7 @@ def first_harmonic_response(k, c, law, force_amplitude, omega, a_range=None, n_g
 
     def g(a):
         k_eq, k_loss = law.first_harmonic(a)
-        K, L = k + float(k_eq), float(k_loss)
+        K, L = k + float(k_eq) - 0.75 * k3 * a * a, float(k_loss)
         return a * a * ((K - w * w) ** 2 + (c * w + L) ** 2) - Q * Q
 
     if a_range is None:
@@ -377,9 +411,13 @@ class HystereticForceStateMapping:
 
     Parameters
     ----------
-    law : {"jenkins", "iwan4"}
+    law : {"jenkins", "iwan4", "jenkins+cubic", "iwan4+cubic"}
         The joint law: a Jenkins element (``kt``, ``Fs``) or Segalman's four-parameter Iwan
-        model (``K_T``, ``F_S``, ``chi``, ``beta``, evaluated on its discretisation).
+        model (``K_T``, ``F_S``, ``chi``, ``beta``, evaluated on its discretisation).  With
+        ``+cubic`` a cubic spring ``-k3 q^3`` (seed sign: ``k3 > 0`` softens) acts beside it: a
+        joint whose stiffness also changes elastically with amplitude (the contact's geometry),
+        which the law alone would imitate by slip and extrapolate wrongly.  ``k3`` is one more
+        linear parameter of the variable projection.
     n_time : int
         Samples of the period at which the law's force is evaluated (``aft``).
     n_sliders, phi_min_ratio : int, float
@@ -422,39 +460,47 @@ class HystereticForceStateMapping:
         out = f @ P.T  # (nr, 2Hm)
         return out, D
 
-    def _design(self, shape, eta, U, P, recs, W):
+    @staticmethod
+    def _cubic_coeffs(U, P):
+        """Harmonics of ``-q^3`` over each record's period (the column of ``k3``)."""
+        return -(U**3) @ P.T
+
+    def _design(self, shape, eta, U, P, recs, W, c3=None):
         fc, _ = self._law_coeffs(shape, eta, U, P, recs)
         blocks, ys = [], []
         for i, r in enumerate(recs):
             m = 2 * r.H
-            X = np.column_stack([r.d[1:], r.v[1:], fc[i, :m]])
+            cols = [r.d[1:], r.v[1:], fc[i, :m]] + ([] if c3 is None else [c3[i, :m]])
+            X = np.column_stack(cols)
             blocks.append(W[i] * (r.U @ X))
             ys.append(W[i] * (r.U @ r.y))
         return np.vstack(blocks), np.concatenate(ys)
 
-    def _projected(self, shape, eta, U, P, recs, W):
-        X, y = self._design(shape, eta, U, P, recs, W)
+    def _projected(self, shape, eta, U, P, recs, W, c3=None):
+        X, y = self._design(shape, eta, U, P, recs, W, c3)
         beta, *_ = np.linalg.lstsq(X, y, rcond=None)
         return y - X @ beta, beta
 
     # --- fit --------------------------------------------------------------------------
     @single_threaded
     def fit(self, signals_list, *, context=""):
-        if self.law not in _SHAPES:
+        if self.law not in LAWS:
             raise IdentificationError(f"law must be one of {LAWS}, got {self.law!r}")
+        base, cubic = self.law.removesuffix(CUBIC), self.law.endswith(CUBIC)
         sigs = list(signals_list)
         if len(sigs) < 3:
             raise IdentificationError(f"{context}the hysteretic force-state mapping needs at least 3 records, got "
                                       f"{len(sigs)}")
-        shape = _SHAPES[self.law](n_sliders=self.n_sliders, phi_min_ratio=self.phi_min_ratio)
+        shape = _SHAPES[base](n_sliders=self.n_sliders, phi_min_ratio=self.phi_min_ratio)
         recs = [_prepare(s, i) for i, s in enumerate(sigs)]
         qmax = np.array([r.q_max for r in recs])
         W = np.array([1.0 / math.sqrt(r.s_force**2 + r.s_accel**2) for r in recs])
         U, P, E = self._periods(recs)
+        c3 = self._cubic_coeffs(U, P) if cubic else None
         lo, hi = shape.bounds(qmax)
 
         def proj(eta):
-            return self._projected(shape, np.asarray(eta, float), U, P, recs, W)[0]
+            return self._projected(shape, np.asarray(eta, float), U, P, recs, W, c3)[0]
 
         lo_a, hi_a = np.array(lo) + 1e-9, np.array(hi) - 1e-9
         opts = dict(bounds=(lo, hi), method="trf", jac="3-point", x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
@@ -462,9 +508,10 @@ class HystereticForceStateMapping:
             eta0 = np.clip(np.asarray(self.start, float), lo_a, hi_a)
         else:  # coarse grid and local searches on a short period, then the full period from the best of them
             Uc, Pc, _ = self._periods(recs, min(128, int(self.n_time)))
+            c3c = self._cubic_coeffs(Uc, Pc) if cubic else None
 
             def coarse(eta):
-                return self._projected(shape, np.asarray(eta, float), Uc, Pc, recs, W)[0]
+                return self._projected(shape, np.asarray(eta, float), Uc, Pc, recs, W, c3c)[0]
 
             cands = [np.clip(g, lo_a, hi_a) for g in shape.grid(qmax)]
             costs = np.array([float(np.sum(coarse(g) ** 2)) for g in cands])
@@ -480,8 +527,8 @@ class HystereticForceStateMapping:
             eta0 = np.clip(best.x, lo_a, hi_a)
         sol = optimize.least_squares(proj, eta0, max_nfev=self.max_evaluations, **opts)
         eta = np.asarray(sol.x, float)
-        res, beta = self._projected(shape, eta, U, P, recs, W)
-        p = np.concatenate([beta, eta])
+        res, beta = self._projected(shape, eta, U, P, recs, W, c3)
+        p = np.concatenate([beta[:3], eta, beta[3:]])  # (k, c, scale, eta..., [k3])
         warn = []
         at_bound = [n for n, v, l, h in zip(shape.names, eta, lo, hi) if min(v - l, h - v) <= 1e-6 * (1 + abs(v))]
         if at_bound:
@@ -499,8 +546,13 @@ class HystereticForceStateMapping:
             warn.append(f"{context}the joint's force scale {shape.scale_name} = {beta[2]:.4g} is not positive: "
                         f"the {self.law} law does not describe these records")
             raise IdentificationError(warn[-1])
-        cov = self._sandwich(shape, p, U, P, E, recs, W)
-        names, vals, pcov, units = shape.physical(p, cov)
+        cov = self._sandwich(shape, p, U, P, E, recs, W, cubic)
+        n_law = 3 + eta.size
+        names, vals, J, units = shape.physical(p[:n_law])
+        if cubic:  # k3 passes through, last
+            J = np.block([[J, np.zeros((J.shape[0], 1))], [np.zeros((1, n_law)), np.ones((1, 1))]])
+            names, vals, units = names + ("k3",), np.append(vals, p[-1]), units + ("N/m^3",)
+        pcov = J @ cov @ J.T
         se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
         dof = max(res.size - p.size, 1)
         rms = float(np.sqrt(res @ res / dof))
@@ -512,12 +564,15 @@ class HystereticForceStateMapping:
         self.coef_ = vals
         self.stderr_ = se
         self.parameters_ = p
+        self.shape_parameters_ = eta
         self.covariance_ = cov
         return self
 
-    def _sandwich(self, shape, p, U, P, E, recs, W):
-        """Sandwich covariance of ``(k, c, scale, eta...)`` under the records' noise model."""
-        beta, eta = p[:3], p[3:]
+    def _sandwich(self, shape, p, U, P, E, recs, W, cubic=False):
+        """Sandwich covariance of ``(k, c, scale, eta..., [k3])`` under the records' noise model."""
+        beta, eta = p[:3], p[3: p.size - int(cubic)]
+        k3 = float(p[-1]) if cubic else 0.0
+        c3 = self._cubic_coeffs(U, P) if cubic else None
         ne = eta.size
         fc, D = self._law_coeffs(shape, eta, U, P, recs, jac=True)
         # columns of the nonlinear parameters: central differences of the projected law force
@@ -533,16 +588,23 @@ class HystereticForceStateMapping:
         meat = np.zeros((npar, npar))
         for i, r in enumerate(recs):
             m = 2 * r.H
-            J = np.column_stack([r.d[1:], r.v[1:], fc[i, :m]] + [beta[2] * d[i, :m] for d in dF])
+            J = np.column_stack([r.d[1:], r.v[1:], fc[i, :m]] + [beta[2] * d[i, :m] for d in dF]
+                                + ([c3[i, :m]] if cubic else []))
             J = W[i] * (r.U @ J)
             JtJ += J.T @ J
             # d(model coeffs)/d(acceleration coeffs), harmonics 1..H: k Ld + c Lv + scale * (P D E) Ld
             G = P[:m] @ D[i] @ E[:, : m + 1]  # d law coeffs / d displacement coeffs
             M = beta[0] * r.Ld[1:] + beta[1] * r.Lv[1:] + beta[2] * (G @ r.Ld)
+            if cubic:  # d(-k3 q^3 harmonics)/d(displacement coefficients)
+                M -= k3 * ((P[:m] * (3.0 * U[i] ** 2)) @ E[:, : m + 1]) @ r.Ld
             M[:, 1:] += np.eye(m)  # y = F - a: the acceleration enters with -1 as well
             S = r.s_force**2 * r.C[1:, 1:] + r.s_accel**2 * (M @ r.C @ M.T)
             Ue = W[i] * r.U
             Sr = Ue @ S @ Ue.T
             meat += J.T @ Sr @ J
-        Hinv = np.linalg.pinv(JtJ)
+        # columns scaled to unit norm before the pseudo-inverse: k3's column (q^3) is many decades
+        # smaller than the others, and pinv's relative cut-off would otherwise drop it (a zero variance)
+        sc = np.sqrt(np.diag(JtJ))
+        sc = np.where(sc > 0, 1.0 / np.where(sc > 0, sc, 1.0), 1.0)
+        Hinv = sc[:, None] * np.linalg.pinv(sc[:, None] * JtJ * sc[None, :]) * sc[None, :]
         return Hinv @ meat @ Hinv
