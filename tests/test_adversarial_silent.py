@@ -176,13 +176,15 @@ def test_import_of_ringdown_needs_no_force_and_a_valid_structure_is_imported(tmp
     from jointid.io.campaign import load_campaign
 
     _csv(tmp_path, "d.csv")
+    _csv(tmp_path, "decay.csv", force=np.zeros(T.size))  # the shaker's force channel recorded while detached
     (tmp_path / "d.toml").write_text(
         '[campaign]\ncoordinates = "physical"\n[structure]\nforce_column = "force"\n'
         'mode_shape = { force = 0.02, accel = 2.0 }\n[import]\nfs = 1024.0\n'
         '[[record]]\nfile = "d.csv"\nchannels = { force = "F", accel = "A" }\n'
-        '[[record]]\nfile = "d.csv"\nchannels = { accel = "A" }\nexcitation = "ringdown"\n')
+        '[[record]]\nfile = "d.csv"\nchannels = { accel = "A" }\nexcitation = "ringdown"\n'
+        '[[record]]\nfile = "decay.csv"\nchannels = { force = "F", accel = "A" }\nexcitation = "ringdown"\n')
     code, out, err = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "c"], capsys)
-    assert code == 0 and "2 records written" in out, (out, err)
+    assert code == 0 and "3 records written" in out, (out, err)
     camp = load_campaign(tmp_path / "c")
     assert camp.coordinates == "physical" and camp.structure["mode_shape"] == {"force": 0.02, "accel": 2.0}
 

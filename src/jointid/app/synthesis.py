@@ -325,21 +325,31 @@ def _turning_terms(model, theta, q) -> str:
     return ", ".join(out) or "the stiffness terms"
 
 
-def _check_bounded(model, state, loc) -> None:
-    """The steady state stays inside the well of the restoring force, and dissipates."""
-    theta = np.asarray(state.theta, float)
-    _check_damping(model, theta, loc, state)
-    t = np.linspace(0.0, 2 * np.pi / state.omega, 512, endpoint=False)
-    q = state.q(t)
-    reach = float(np.max(np.abs(q)))
-    edge = _well_edge(model, theta, reach)
-    if edge is not None and edge < reach * (1 - 1e-9):
-        raise ManifestError(
-            f"{loc}: the steady state at {state.omega / (2 * np.pi):.6g} Hz, force level {state.force_amplitude:g}, "
-            f"reaches |q| = {reach:.4g}; the restoring force stops pulling back to rest by |q| = {edge:.4g} "
-            f"({_turning_terms(model, theta, edge)}); no bounded motion of that size exists (the system escapes "
-            f"the well): the model is not physical at this force level; lower the force levels or the nonlinear "
-            f"coefficient")
+def _check_bounded(model, states, loc) -> None:
+    """The steady states stay inside the well of the restoring force, and dissipate."""
+    reaches = []
+    for state in states:
+        _check_damping(model, np.asarray(state.theta, float), loc, state)
+        t = np.linspace(0.0, 2 * np.pi / state.omega, 256, endpoint=False)
+        reaches.append(float(np.max(np.abs(state.q(t)))))
+    if not reaches:
+        return
+    stiffness_law = any(t.kind == "stiffness" and _key(model, t.coefficient).startswith("amplitude_laws")
+                        for t in model.terms)
+    # the stiffness of every state is the same without a law on it: one well for the whole sweep
+    groups = [[i] for i in range(len(states))] if stiffness_law else [list(range(len(states)))]
+    for group in groups:
+        theta = np.asarray(states[group[0]].theta, float)
+        edge = _well_edge(model, theta, max(reaches[i] for i in group))
+        beyond = [i for i in group if edge is not None and edge < reaches[i] * (1 - 1e-9)]
+        if beyond:
+            state, reach = states[beyond[0]], reaches[beyond[0]]
+            raise ManifestError(
+                f"{loc}: the steady state at {state.omega / (2 * np.pi):.6g} Hz, force level "
+                f"{state.force_amplitude:g}, reaches |q| = {reach:.4g}; the restoring force stops pulling back to "
+                f"rest by |q| = {edge:.4g} ({_turning_terms(model, theta, edge)}); no bounded motion of that size "
+                f"exists (the system escapes the well): the model is not physical at this force level; lower the "
+                f"force levels or the nonlinear coefficient")
 
 
 def simulate_steady_states(cfg: SimulationConfig, progress=False):
@@ -363,8 +373,7 @@ def simulate_steady_states(cfg: SimulationConfig, progress=False):
                                    f"{edge:.4g} ({_turning_terms(model, model.coefficients, edge)}), below the "
                                    f"static deflection {F / model.omega1 ** 2:.4g} of force level {F:g}: the model "
                                    f"cannot hold this force (it escapes the well)") from None
-        for state in frf.states:
-            _check_bounded(model, state, loc)
+        _check_bounded(model, frf.states, loc)
         out.append((preload, F, frf))
         bar.update(1)
     bar.close()

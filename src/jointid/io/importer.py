@@ -58,6 +58,11 @@ The description is validated before any file is read, like a campaign manifest: 
 known keys (the nearest valid name is suggested), types and values; a source path that
 leaves the data folder (``..``, an absolute path) fails its record.  CSV time stamps get the
 campaign's tolerance (:data:`jointid.io.campaign.CSV_TIME_RTOL`) and are written uniform.
+A ``[structure]`` table is checked as the campaign loader reads it (known keys, or tables keyed
+by the records' preloads), and its values by the command (:mod:`jointid.modal.structure`).
+A record fails, named, when its column map lacks what its excitation is identified from (the
+force, but for a ring-down; the response in modal coordinates) or when a channel is constant
+or zero throughout (a dead sensor); MAT logical arrays are refused, not read as 0/1 samples.
 """
 
 from __future__ import annotations
@@ -454,13 +459,17 @@ def _check_columns(entry, i, sources, coordinates, structures) -> None:
                           f"({' or '.join(repr(r) for r in responses)}); the column map gives {mapped}")
 
 
-def _check_live(rec: Channels, files: dict, i: int) -> None:
+def _check_live(rec: Channels, files: dict, i: int, skip=()) -> None:
     """Every channel varies: a constant or all-zero channel is a dead or unconnected sensor (the record fails).
+
+    ``skip``: columns not used (the force of a free decay, which may well be zero throughout).
 
     The rule of the identification's check (:func:`jointid.signal.checks.check_live`, a floor
     above this module), here before the record is written, naming the source file and channel.
     """
     for k in rec.names:
+        if k in skip:
+            continue
         x = rec.data[k]
         lo, hi = float(np.min(x)), float(np.max(x))
         if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):
@@ -590,7 +599,9 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out, str
                 rec = Channels(rec.time[keep], {k: rec.data[k][keep] for k in rec.names},
                                dict(rec.units), source=rec.source)
             _check_time_span(rec, entry, i)
-            _check_live(rec, files, i)
+            physical = head.get("coordinates", "modal") == "physical"
+            force = _force_column(structures, entry) if physical else "force"
+            _check_live(rec, files, i, skip=(force,) if entry.get("excitation") == "ringdown" else ())
             rel = f"records/{len(written):04d}.csv"
             write_csv_record(out / rel, rec.time, {k: rec.data[k] for k in rec.names})
         except ManifestError:
