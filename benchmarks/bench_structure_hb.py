@@ -42,6 +42,7 @@ import warnings
 import numpy as np
 import scipy.io
 import scipy.sparse
+from bench_speed import cpu_medians  # (this folder is on the path when run as a script)
 
 from jointid._blas import single_threaded
 from jointid.joints import Iwan4
@@ -66,19 +67,6 @@ STRUCTURE_HB_CASE = {
     "force_position": SEED_GEOMETRY["force_position"],
     "tol": 1e-9,
 }
-
-
-def cpu_medians(fns, repeat):
-    """Median CPU times [s] of functions run in turn (after a warm-up round), as in bench_speed.py."""
-    for fn in fns:
-        fn()
-    times = [[] for _ in fns]
-    for _ in range(repeat):
-        for fn, ts in zip(fns, times):
-            t = time.process_time()
-            fn()
-            ts.append(time.process_time() - t)
-    return [float(np.median(ts)) for ts in times]
 
 
 def build_case(n_modes=None, case=STRUCTURE_HB_CASE):
@@ -142,9 +130,9 @@ def write_case(case, out_dir) -> dict:
         files[f"{name}.mtx"] = out / f"{name}.mtx"
         scipy.io.mmwrite(str(files[f"{name}.mtx"]), mat, precision=17)
     desc = {
-        "case": "reduced beam, %d modes, one 4-parameter Iwan joint in rotation, harmonics 0..%d, %d time samples, "
-                "continuation across mode 1 at %d force levels" % (e.n_modes, case["n_harmonics"], case["n_time"],
-                                                                   len(case["force_levels"])),
+        "case": f"reduced beam, {e.n_modes} modes, one 4-parameter Iwan joint in rotation, harmonics "
+                f"0..{case['n_harmonics']}, {case['n_time']} time samples, continuation across mode 1 at "
+                f"{len(case['force_levels'])} force levels",
         "equation": "M_red eta'' + C_red eta' + K_red eta + psi^T (f_iwan(u) - k_model u) = p F sin(omega t), "
                     "u = psi eta (psi = joint_selection_red, p = force_vector_red); equivalently x = Phi eta on the "
                     "FE DOFs, u = joint_selection . x, load = force_vector F sin(omega t)",
@@ -154,10 +142,10 @@ def write_case(case, out_dir) -> dict:
             "M, K": "FE mass and stiffness matrices of the jointed cantilever (clamped DOFs removed), the joint "
                     "stuck: the rotational joint spring includes the Iwan K_T (M.mtx, K.mtx: coordinate format)",
             "dof_names": "one name per FE DOF: w<node> (deflection, m), th<node> (rotation, rad)",
-            "joint_selection": "u = joint_selection . x: relative rotation th%s - th%s of the joint nodes"
-                               % tuple(d[2:] for d in reversed(case["joint_dofs"])),
-            "force_vector": "FE load vector of a unit force at %.3f m (consistent Hermite load; F sin(omega t) "
-                            "multiplies it)" % case["force_position"],
+            "joint_selection": f"u = joint_selection . x: relative rotation {case['joint_dofs'][1]} - "
+                               f"{case['joint_dofs'][0]} of the joint nodes",
+            "force_vector": f"FE load vector of a unit force at {case['force_position']:.3f} m (consistent Hermite "
+                            "load; F sin(omega t) multiplies it)",
             "Phi": "the kept mass-normalised modes (n_dof x n_modes): Phi^T M Phi = M_red = I, Phi^T K Phi = K_red",
             "omega, zeta": "natural frequencies [rad/s] and modal damping ratios of the kept modes",
             "M_red, K_red, C_red": "the reduced model the case is solved on (modal damping: C_red = diag(2 zeta "
@@ -286,7 +274,7 @@ def run(case, repeat=3, max_steps=2000, check_points=3, n_periods=10):
     for F in case["force_levels"]:
         force = [0.0, 0.0, float(F)]
 
-        def continue_curve():
+        def continue_curve(force=force):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 return e.continuation(w0, w1, force, H, n_time=N, tol=tol, max_steps=max_steps)
@@ -300,10 +288,10 @@ def run(case, repeat=3, max_steps=2000, check_points=3, n_periods=10):
         guesses = [(p.omega, q) for p, q in zip(pts[1:], pts[:-1])]
         cond_out, full_out = [], []
 
-        def fixed_condensed():
+        def fixed_condensed(force=force, guesses=guesses, cond_out=cond_out):
             cond_out[:] = [e.solve(w, force, H, n_time=N, guess=q, tol=tol) for w, q in guesses]
 
-        def fixed_full():
+        def fixed_full(force=force, guesses=guesses, full_out=full_out):
             full_out[:] = [full.solve(w, force, q.modal, tol=tol) for w, q in guesses]
 
         t_cont, t_cond, t_full = cpu_medians([continue_curve, fixed_condensed, fixed_full], repeat)
