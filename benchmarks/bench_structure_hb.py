@@ -101,8 +101,12 @@ def build_case(n_modes=None, case=STRUCTURE_HB_CASE):
     return c
 
 
-def write_case(case, out_dir) -> dict:
-    """Write the case for another toolbox; returns ``{file name: path}``."""
+def write_case(case, out_dir, results=None) -> dict:
+    """Write the case for another toolbox; returns ``{file name: path}``.
+
+    With ``results`` (of :func:`run`) also ``reference.json``: this engine's curves (frequency,
+    first-harmonic joint rotation amplitude, residual of every point) to compare with.
+    """
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     st, law = case["structure"], case["law"]
@@ -167,8 +171,20 @@ def write_case(case, out_dir) -> dict:
                      "band_hz": list(case["band_hz"]), "force_levels": list(case["force_levels"]),
                      "tolerance": case["tol"], "first_natural_frequency_hz": case["f1"],
                      "joint_dofs": list(case["joint_dofs"]), "n_dof": len(case["dof_names"])},
-        "files": sorted(files) + ["case.json", "README.md"],
+        "files": sorted(files) + ["case.json", "README.md"] + (["reference.json"] if results else []),
     }
+    if results:
+        ref = {"note": "this engine's curves (CondensedHB continuation); u1: amplitude of the first harmonic of the "
+                       "joint rotation [rad]; peak: the computed point of largest u1",
+               "levels": [{"force": r["force"], "points": r["points"], "folds": r["folds"], "peak_hz": r["peak_hz"],
+                           "peak_u1": r["peak_u"],
+                           "frequency_hz": [float(q.frequency_hz) for q in r["curve"].points],
+                           "u1": [float(abs(q.joint[0, 1] - 1j * q.joint[0, 2])) for q in r["curve"].points],
+                           "residual": [float(q.residual_norm) for q in r["curve"].points]}
+                          for r in results["levels"]],
+               "time_integration": results["time_integration"]}
+        files["reference.json"] = out / "reference.json"
+        files["reference.json"].write_text(json.dumps(ref, indent=1) + "\n")
     files["case.json"] = out / "case.json"
     files["case.json"].write_text(json.dumps(desc, indent=2) + "\n")
     files["README.md"] = out / "README.md"
@@ -365,11 +381,12 @@ def main(argv=None):
     case = build_case(args.n_modes)
     if args.force_levels:
         case["force_levels"] = tuple(float(x) for x in args.force_levels.split(","))
+    res = run(case, repeat=args.repeat, max_steps=args.max_steps, check_points=args.check_points,
+              n_periods=args.periods)
     if args.write_case:
-        files = write_case(case, args.write_case)
+        files = write_case(case, args.write_case, res)
         print(f"case written to {args.write_case}: {', '.join(sorted(files))}")
-    return run(case, repeat=args.repeat, max_steps=args.max_steps, check_points=args.check_points,
-               n_periods=args.periods)
+    return res
 
 
 if __name__ == "__main__":

@@ -57,6 +57,8 @@ def test_case_files_load_back_and_reproduce_the_printed_points(bench, tmp_path, 
     desc = json.loads((tmp_path / "case.json").read_text())
     assert set(desc["files"]) == {p.name for p in tmp_path.iterdir()}
     assert desc["settings"]["n_harmonics"] == 7 and desc["settings"]["n_time"] == 256
+    ref = json.loads((tmp_path / "reference.json").read_text())["levels"][0]
+    assert ref["frequency_hz"] == [p.frequency_hz for p in out["levels"][0]["curve"].points]
 
     # a model built from the files alone solves the printed points to the engine's tolerance
     om = np.sqrt(np.diag(z["K_red"]))
