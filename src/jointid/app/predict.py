@@ -67,6 +67,14 @@ from ..errors import (
     RecordError,
     RecordFileNotFoundError,
 )
+from .predict_peaks import (  # noqa: F401 (here before)
+    DS_MAX,
+    MAX_WIDEN,
+    WIDEST,
+    _curve,
+    _located_peak,
+    predict_peak,
+)
 
 __all__ = [
     "PredictResult",
@@ -84,13 +92,6 @@ __all__ = [
     "write_predictions",
 ]
 
-#: Largest continuation step (scaled space of :func:`jointid.simulate.hbm.frequency_response`):
-#: small enough that the chord-length parabola places the peak to about 1e-6 of its value.
-DS_MAX = 0.005
-#: Times the default band is widened on one side to bring a peak at its edge inside.
-MAX_WIDEN = 6
-#: The widest default band, as fractions of the model's linear natural frequency.
-WIDEST = (0.5, 2.0)
 Z95 = 1.959963984540054
 
 
@@ -271,74 +272,6 @@ def measured_dwells(results, preload, force_level):
     return None
 
 
-# --- the harmonic balance and the peak -------------------------------------------------------------
-
-def _curve(model, Q, span_hz, n_harmonics, stability):
-    from ..simulate.hbm import frequency_response
-
-    lo, hi = span_hz
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointidWarning)
-        with np.errstate(all="ignore"):
-            return frequency_response(model, Q, omega_range=(2 * np.pi * lo, 2 * np.pi * hi), n_harmonics=n_harmonics,
-                                      stability=stability, ds_max=DS_MAX, max_steps=200_000)
-
-
-def _located_peak(omega, q_max):
-    """``(frequency_hz, q_max, index)`` of the largest ``q_max`` along the curve, between the
-    points (parabolas in chord length through the largest point and its neighbours); ``None``
-    when the largest point is an end of the curve (no peak inside the band)."""
-    w = np.asarray(omega, float)
-    q = np.asarray(q_max, float)
-    i = int(np.argmax(q))
-    if i == 0 or i == q.size - 1:
-        return None
-    sw = max(float(np.ptp(w)), 1e-300)
-    sq = max(float(np.max(q)), 1e-300)
-    ds = np.hypot(np.diff(w[i - 1:i + 2]) / sw, np.diff(q[i - 1:i + 2]) / sq)
-    s = np.array([-ds[0], 0.0, ds[1]])
-    if not (ds[0] > 0 and ds[1] > 0):
-        return float(w[i] / (2 * np.pi)), float(q[i]), i
-    h = s / max(ds)  # scaled for conditioning
-    V = np.vander(h, 3)
-    aq = np.linalg.solve(V, q[i - 1:i + 2])
-    aw = np.linalg.solve(V, w[i - 1:i + 2])
-    if not aq[0] < 0:
-        return float(w[i] / (2 * np.pi)), float(q[i]), i
-    hp = float(np.clip(-aq[1] / (2 * aq[0]), h[0], h[2]))
-    return float(np.polyval(aw, hp) / (2 * np.pi)), float(np.polyval(aq, hp)), i
-
-
-def predict_peak(model, Q, span_hz, n_harmonics=5, *, widen=True, stability=False):
-    """Continue the model's response from ``span_hz[0]`` to ``span_hz[1]`` and locate its peak.
-
-    Returns ``(response, peak, span_hz)``: the :class:`~jointid.simulate.hbm.FrequencyResponse`,
-    ``(frequency_hz, q_max, index)`` or ``None``, and the band finally used (widened on the side of
-    a peak at its edge when ``widen``).
-    """
-    lo, hi = (float(v) for v in span_hz)
-    # a single-mode model says nothing far from its mode: the band is widened to at most half
-    # and twice its linear natural frequency
-    f1 = model.omega1 / (2 * np.pi)
-    lo_min, hi_max = min(lo, WIDEST[0] * f1), max(hi, WIDEST[1] * f1)
-    for _ in range(MAX_WIDEN + 1):
-        r = _curve(model, Q, (lo, hi), n_harmonics, stability)
-        peak = _located_peak(r.omega, r.q_max)
-        if peak is not None or not widen or len(r) < 2:
-            return r, peak, (lo, hi)
-        width = hi - lo
-        f_top = float(r.omega[int(np.argmax(r.q_max))]) / (2 * np.pi)
-        if f_top - lo < hi - f_top:  # the curve leaves the band at its low edge still growing
-            if lo <= lo_min:
-                break
-            lo = max(lo - width, lo_min)
-        else:
-            if hi >= hi_max:
-                break
-            hi = min(hi + width, hi_max)
-    return r, peak, (lo, hi)
-
-
 # --- one prediction ---------------------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
@@ -368,6 +301,9 @@ class Prediction:
         Warnings of this prediction.
     error : str or None
         Why there is no prediction (then the arrays are empty).
+    joint_law : str
+        ``"polynomial"`` (the model's terms) or the hysteretic law solved (``"jenkins"``, ``"iwan4"``,
+        :mod:`jointid.app.predict_hysteretic`), with its parameters in ``joint_law_summary``.
     """
 
     preload: object
@@ -391,6 +327,8 @@ class Prediction:
     model: object = field(default=None, repr=False)
     measured: tuple | None = None  # (frequency_hz, fundamental amplitude) of the measured dwells at this level
     time_check: dict | None = None  # the curve point at the peak solved again by time integration (shooting)
+    joint_law: str = "polynomial"  # the restoring force solved: polynomial terms, or the selected hysteretic law
+    joint_law_summary: dict | None = None  # that law's parameters (a hysteretic law)
 
     def __post_init__(self):
         for name in ("frequency_hz", "q_max", "stable"):
@@ -432,6 +370,8 @@ class Prediction:
             "warnings": list(self.notes),
             "error": self.error,
             "time_integration_check": self.time_check,
+            "joint_law": self.joint_law,
+            "joint_law_model": self.joint_law_summary,
             "measured_dwells": None if self.measured is None else {
                 "frequency_hz": [float(v) for v in self.measured[0]],
                 "amplitude": [float(v) for v in self.measured[1]],
@@ -442,6 +382,8 @@ class Prediction:
         from ..rounding import format_estimate, format_value
 
         head = f"preload {format_value(self.preload)}, F = {format_value(self.force_level)} (Q = {format_value(self.modal_force)})"
+        if self.joint_law != "polynomial":
+            head += f" [{self.joint_law} joint law]"
         if self.error:
             return f"{head}: FAILED: {self.error}"
         if not self.has_peak:
@@ -594,16 +536,9 @@ def _negative_damping(model, lib, state) -> list:
     return notes
 
 
-def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_range=None, n_harmonics=5,
-                  uncertainty=True) -> Prediction:
-    """Predict one preload's response (``models`` entry ``entry``) at one force level.
-
-    ``frequency_range`` (Hz) fixes the band; by default the model's measured band
-    (``frequency_hz_range``), widened where the peak lies beyond it.
-    """
-    from ..identify.terms import library
-
-    p = entry.get("preload")
+def _level_setup(entry, force_level, scale, fitted_levels, frequency_range, n_harmonics, f1):
+    """``(Q, span, widen, notes, base)`` of one prediction: the modal force, the band, the extrapolation
+    note and the fields every :class:`Prediction` of it has."""
     F = float(force_level)
     Q = float(scale) * F
     levels = tuple(float(v) for v in fitted_levels)
@@ -618,14 +553,71 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
         span, widen = tuple(float(v) for v in frequency_range), False
     else:
         rng = entry.get("frequency_hz_range")
-        f1 = float(entry.get("f1_hz") or np.sqrt(max(entry["parameters"][0], 0.0)) / (2 * np.pi))
         if isinstance(rng, list) and len(rng) == 2 and all(_numeric(v) for v in rng) and rng[1] > rng[0] > 0:
             span = (float(rng[0]), float(rng[1]))
         else:
             span = (0.9 * f1, 1.1 * f1)
         widen = True
-    base = dict(preload=p, force_level=F, modal_force=Q, fitted_levels=levels, extrapolated=extrapolated,
-                n_harmonics=int(n_harmonics))
+    base = {"preload": entry.get("preload"), "force_level": F, "modal_force": Q, "fitted_levels": levels,
+            "extrapolated": extrapolated, "n_harmonics": int(n_harmonics)}
+    return Q, span, widen, notes, base
+
+
+def _beyond_fitted(entry, pq, what):
+    """``(beyond, note or None)``: the peak amplitude outside the model's fitted ``q_max_range``."""
+    rng = entry.get("q_max_range")
+    if not (isinstance(rng, list) and len(rng) == 2 and all(_numeric(v) for v in rng)):
+        return False, None
+    if rng[0] * (1 - 1e-9) <= pq <= rng[1] * (1 + 1e-9):
+        return False, None
+    where = (f"{100 * (pq / rng[1] - 1):.2g} % above the largest fitted q_max {rng[1]:.4g}" if pq > rng[1]
+             else f"below the smallest fitted q_max {rng[0]:.4g}")
+    return True, f"peak amplitude {pq:.4g} {where}: {what}"
+
+
+def _predict_hysteretic_level(entry, model, force_level, scale, fitted_levels, frequency_range, n_harmonics,
+                              uncertainty) -> Prediction:
+    """:func:`predict_level` with a selected hysteretic joint law (:mod:`jointid.app.predict_hysteretic`)."""
+    from .predict_hysteretic import hysteretic_response
+
+    Q, span, widen, notes, base = _level_setup(entry, force_level, scale, fitted_levels, frequency_range,
+                                               n_harmonics, model.f1_hz)
+    base.update(joint_law=model.law_name, joint_law_summary=model.summary(n_harmonics))
+    try:
+        out = hysteretic_response(model, Q, span, n_harmonics, widen=widen, uncertainty=uncertainty)
+    except (JointidError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        return Prediction(frequency_hz=[], q_max=[], stable=[], frequency_range_hz=tuple(span),
+                          notes=tuple(notes), error=f"no steady state: {exc}", **base)
+    beyond = False
+    if out["peak"] is not None:
+        beyond, note = _beyond_fitted(entry, out["peak"][1], "beyond the amplitudes the joint law was fitted on")
+        notes += [note] if note else []
+    pf, pq = out["peak"] if out["peak"] is not None else (float("nan"), float("nan"))
+    return Prediction(frequency_hz=out["frequency_hz"], q_max=out["q_max"], stable=out["stable"],
+                      folds_hz=out["folds_hz"], peak_frequency_hz=pf, peak_q_max=pq,
+                      peak_frequency_hz_stderr=out["stderr"][0], peak_q_max_stderr=out["stderr"][1],
+                      amplitude_beyond_fitted=beyond, frequency_range_hz=out["span"],
+                      notes=tuple(notes + out["notes"]), **base)
+
+
+def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_range=None, n_harmonics=5,
+                  uncertainty=True, hysteretic=None) -> Prediction:
+    """Predict one preload's response (``models`` entry ``entry``) at one force level.
+
+    ``frequency_range`` (Hz) fixes the band; by default the model's measured band
+    (``frequency_hz_range``), widened where the peak lies beyond it.  With ``hysteretic`` (a
+    :class:`~jointid.app.predict_hysteretic.HystereticModel`: the preload's selected joint law)
+    that law is solved instead of the entry's polynomial terms, the entry giving the band and
+    the fitted amplitudes.
+    """
+    from ..identify.terms import library
+
+    if hysteretic is not None:
+        return _predict_hysteretic_level(entry, hysteretic, force_level, scale, fitted_levels, frequency_range,
+                                         n_harmonics, uncertainty)
+    f1 = float(entry.get("f1_hz") or np.sqrt(max(entry["parameters"][0], 0.0)) / (2 * np.pi))
+    Q, span, widen, notes, base = _level_setup(entry, force_level, scale, fitted_levels, frequency_range,
+                                               n_harmonics, f1)
     try:
         model = model_of_entry(entry)
         r, peak, span = predict_peak(model, Q, span, n_harmonics, widen=widen, stability=True)
@@ -647,15 +639,9 @@ def predict_level(entry, force_level, *, scale=1.0, fitted_levels=(), frequency_
                                  "curve: the damping law, extrapolated, removes no energy there")
     else:
         pf, pq, _ = peak
-        rng = entry.get("q_max_range")
-        if isinstance(rng, list) and len(rng) == 2 and all(_numeric(v) for v in rng):
-            beyond = not (rng[0] * (1 - 1e-9) <= pq <= rng[1] * (1 + 1e-9))
-            if beyond:
-                where = (f"{100 * (pq / rng[1] - 1):.2g} % above the largest fitted q_max {rng[1]:.4g}" if pq > rng[1]
-                         else f"below the smallest fitted q_max {rng[0]:.4g}")
-                notes.append(f"peak amplitude {pq:.4g} {where}: "
-                             + ("the amplitude laws are extrapolated" if model.amplitude_laws
-                                else "beyond the amplitudes the model was fitted on"))
+        beyond, note = _beyond_fitted(entry, pq, "the amplitude laws are extrapolated" if model.amplitude_laws
+                                      else "beyond the amplitudes the model was fitted on")
+        notes += [note] if note else []
         notes += _negative_damping(model, library(entry["terms"]), r.state(peak[2]))
         check = _time_check(model, Q, r.state(peak[2]))
         if check["error"]:
@@ -787,6 +773,9 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
     if not usable:
         why = "; ".join(f"preload {p}: {r}" for p, r in skipped.items()) or "the results hold no model"
         raise RecordError(f"{source}: no usable model to predict with ({why})")
+    from .predict_hysteretic import hysteretic_models
+
+    hyst = hysteretic_models(results, source)  # preloads whose selection picked a hysteretic law: solved with it
     preds, scaling = [], {}
     for entry in usable:
         p = entry.get("preload")
@@ -794,7 +783,8 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
         fitted = fitted_force_levels(results, p)
         for F in levels:
             pred = predict_level(entry, F, scale=scaling[p]["modal_force_per_unit"], fitted_levels=fitted,
-                                 frequency_range=frequency_range, n_harmonics=n_harmonics, uncertainty=uncertainty)
+                                 frequency_range=frequency_range, n_harmonics=n_harmonics, uncertainty=uncertainty,
+                                 hysteretic=hyst.get(p))
             dwells = measured_dwells(results, p, F)
             if dwells is not None:
                 pred = replace(pred, measured=dwells)
@@ -805,7 +795,10 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
                 "n_harmonics": int(n_harmonics), "uncertainty": bool(uncertainty), "ds_max": DS_MAX}
     keep = ("preload", "terms", "amplitude_laws", "parameter_names", "parameters", "stderr", "q_max_range",
             "frequency_hz_range")
-    models = tuple({k: e.get(k) for k in keep} for e in usable)
+    models = tuple({**{k: e.get(k) for k in keep},
+                    "joint_law": hyst[e.get("preload")].law_name if e.get("preload") in hyst else "polynomial",
+                    "joint_law_model": hyst[e.get("preload")].summary() if e.get("preload") in hyst else None}
+                   for e in usable)
     return PredictResult(source, levels, tuple(preds), scaling, skipped, settings, models, results.get("run_id"))
 
 
@@ -814,8 +807,8 @@ def write_predictions(result: PredictResult, out, inputs=()) -> dict:
     ``out`` as one output set (kind ``predict``); returns the written paths (in ``out``)."""
     from ..io.outputset import new_run_id, output_set
     from ..io.results import atomic_write, write_json
-    from ..report.html import Section, figure_to_png, page_meta, write_html
     from ..report.formatting import slug
+    from ..report.html import Section, figure_to_png, page_meta, write_html
     from ..report.predict_plots import plot_predictions, prediction_rows
 
     final = Path(out)

@@ -1,0 +1,411 @@
+"""Prediction with the hysteretic joint law that ``identify --terms auto`` selected.
+
+When a preload's model selection (``selection[*]`` of the results) picked a hysteretic joint
+law (Jenkins, four-parameter Iwan), its ``hysteretic_model`` holds the law fitted to all the
+preload's records: ``k``, ``c`` and the law's parameters with their covariance.  The
+single-mode model
+
+``q'' + c q' + k q + f_joint(q) = Q sin(omega t)``
+
+is then solved with that law itself (not the polynomial stand-in of ``models``) by the
+multi-mode harmonic balance condensed on the joint coordinates
+(:class:`jointid.simulate.structure_hb.CondensedHB`) with one mode: natural frequency
+``sqrt(k + K0)`` with the joint stuck (``K0`` its initial stiffness: ``kt`` or ``K_T``),
+damping ratio ``c / (2 sqrt(k + K0))``, the joint acting on the modal coordinate with ``K0``
+given as the stiffness already in the linear model.  The joint force over a period is the
+law's ``aft`` with its exact Jacobian; the curve is continued through the folds.
+
+``q_max`` is ``max_t |q(t)|`` of each steady state (to machine precision); the peak is
+located between the points as for the polynomial models
+(:func:`jointid.app.predict.predict_peak`).  Stability is read from the folds: on a
+single-mode forced response the branch between two folds is the unstable one (saddle-node
+turning points), the rest stable (Hill's method with slider laws is not yet checked).
+
+Standard errors of the peak: the law's parameter covariance (``hysteretic_model.covariance``
+over the independent parameters ``k, c, kt, Fs`` or ``k, c, K_T, F_S, chi, beta``)
+propagated linearly, the derivatives by central differences over one standard error
+(one-sided where the other side leaves the law's domain), each perturbed model solved at the
+nominal curve's points about its peak.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConvergenceError, JointidError, JointidWarning, RecordError
+from ..joints import Iwan4, Jenkins
+
+__all__ = ["ExactReversals", "HystereticModel", "hysteretic_model_of", "hysteretic_models", "hysteretic_response"]
+
+#: Independent parameters of each law in the fit's ``names`` (the others are functions of them).
+INDEPENDENT = {"jenkins": ("k", "c", "kt", "Fs"), "iwan4": ("k", "c", "K_T", "F_S", "chi", "beta")}
+LAW_TEXT = {"jenkins": "Jenkins joint law", "iwan4": "four-parameter Iwan joint law"}
+
+
+def _time_samples(n_harmonics, fine=False) -> int:
+    """AFT samples per period: of the continued curve, or (``fine``) of the points about the peak.
+
+    With the reversals at the exact extrema (:class:`ExactReversals`) the sampled force is
+    exact at the samples, but its projection on the harmonics still aliases the kinks of
+    stick-slip (Jenkins, H = 5, Q = 14, peak frequency: -0.13 % at 64 samples, -0.056 % at
+    128, -0.018 % at 256, about 1e-5 relative at 512 against 1024), so the curve is continued
+    at ``16 (H + 1)`` samples and the points about its peak are solved again at ``64 (H + 1)``
+    (powers of two).
+    """
+    return int(2 ** math.ceil(math.log2((64 if fine else 16) * (int(n_harmonics) + 1))))
+
+
+class ExactReversals:
+    """A slider law (Masing, rate independent) whose AFT reverses at the exact extrema of the motion.
+
+    The sampled map of a slider law reverses the sliders at the largest and smallest
+    *sample*, not at the extremum of the motion between samples: its force is off by
+    ``O(N^-2)`` and, worse, jumps as an extremum crosses a sample, which makes the peak of a
+    response jagged in frequency at the 1e-5 level (a finite-difference derivative over one
+    standard error is then noise).  The motion samples of harmonic balance are a trigonometric
+    polynomial of degree below ``N / 2``; its extrema (zeros of the spectral derivative,
+    Newton from the bracketing samples) are inserted as extra samples, the law's ``aft`` runs on
+    the augmented sequence (a rate-independent law depends on the order of the values only),
+    and the inserted samples are dropped.  The Jacobian is exact: at an extremum ``u'(t*) = 0``,
+    so ``d u(t*) / d u_j`` is the trigonometric interpolation weight of sample ``j`` at ``t*``.
+    """
+
+    rate_dependent = False
+
+    def __init__(self, law):
+        self.law = law
+
+    def __repr__(self):
+        return f"ExactReversals({self.law!r})"
+
+    @staticmethod
+    def _extrema(u):
+        n = u.size
+        K = (n - 1) // 2
+        c = np.fft.rfft(u)[1:K + 1] * (2.0 / n)  # u = c0 + sum Re(c_k e^{i k t}), t = 2 pi j / n
+        k = np.arange(1, K + 1)
+        t = 2 * np.pi * np.arange(n) / n
+        v = (np.exp(1j * np.outer(t, k)) @ (1j * k * c)).real
+        j = np.flatnonzero(v * np.roll(v, -1) < 0)
+        if j.size == 0:
+            return np.zeros(0), np.zeros((0, n))
+        h = 2 * np.pi / n
+        ts = t[j] + h * v[j] / (v[j] - v[(j + 1) % n])  # linear zero of u' between the samples
+        for _ in range(6):  # Newton on u'(t) = 0
+            z = np.exp(1j * np.outer(ts, k))
+            d1 = (z @ (1j * k * c)).real
+            d2 = (z @ (-(k**2) * c)).real
+            ts = np.clip(ts - d1 / np.where(d2 == 0, 1e-300, d2), t[j], t[j] + h)
+        # trigonometric interpolation weights of the samples at ts (degree K, n > 2K)
+        dt = ts[:, None] - t[None, :]
+        W = (1.0 + 2.0 * np.cos(np.multiply.outer(dt, k)).sum(axis=-1)) / n
+        return ts, W
+
+    def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True):
+        u = np.asarray(u_t, float)
+        if u.ndim != 1:
+            out = [self.aft(x, jacobian=jacobian) for x in u.reshape(-1, u.shape[-1])]
+            f = np.array([o[0] for o in out]).reshape(u.shape)
+            D = None if not jacobian else np.array([o[1] for o in out]).reshape(u.shape + (u.shape[-1],))
+            return (f, D, None if D is None else np.zeros_like(D)) if velocity_jacobian else (f, D)
+        n = u.size
+        ts, W = self._extrema(u)
+        t = 2 * np.pi * np.arange(n) / n
+        times = np.concatenate([t, ts])
+        vals = np.concatenate([u, W @ u])
+        order = np.argsort(times, kind="stable")
+        f_aug, D_aug = self.law.aft(vals[order], jacobian=jacobian)
+        pos = np.empty(order.size, dtype=np.intp)
+        pos[order] = np.arange(order.size)  # where each original / inserted sample sits in the sequence
+        f = f_aug[pos[:n]]
+        D = None
+        if jacobian:
+            D_aug = np.asarray(D_aug)[pos[:n]]
+            D = D_aug[:, pos[:n]] + D_aug[:, pos[n:]] @ W
+        if velocity_jacobian:
+            return f, D, None if D is None else np.zeros_like(D)
+        return f, D
+
+
+@dataclass(frozen=True)
+class HystereticModel:
+    """``q'' + c q' + k q + f_joint(q)``: the selected law's single-mode model (modal units per unit mass)."""
+
+    law_name: str
+    names: tuple
+    values: np.ndarray
+    covariance: np.ndarray
+    n_sliders: int = 60
+    phi_min_ratio: float = 1e-4
+
+    def get(self, name, values=None) -> float:
+        v = self.values if values is None else values
+        return float(v[self.names.index(name)])
+
+    def law(self, values=None):
+        g = (lambda n: self.get(n, values))
+        if self.law_name == "jenkins":
+            return Jenkins(g("kt"), g("Fs"))
+        return Iwan4(g("F_S"), g("K_T"), g("chi"), g("beta"), n_sliders=self.n_sliders,
+                     phi_min_ratio=self.phi_min_ratio)
+
+    def stiffness0(self, values=None) -> float:
+        """Joint's stiffness when stuck."""
+        return self.get("kt" if self.law_name == "jenkins" else "K_T", values)
+
+    def engine(self, values=None):
+        """The one-mode :class:`~jointid.simulate.structure_hb.CondensedHB` of these parameters."""
+        from ..simulate.structure_hb import CondensedHB
+
+        k, c, k0 = self.get("k", values), self.get("c", values), self.stiffness0(values)
+        if not (k + k0 > 0 and c >= 0):
+            raise JointidError(f"{self.law_name}: k + {('kt' if self.law_name == 'jenkins' else 'K_T')} = "
+                               f"{k + k0:.4g} and c = {c:.4g}: no positive stiffness and non-negative damping")
+        w0 = math.sqrt(k + k0)
+        return CondensedHB([w0], [c / (2 * w0)], [[1.0]], [1.0], [ExactReversals(self.law(values))], k_model=k0)
+
+    @property
+    def f1_hz(self) -> float:
+        return math.sqrt(max(self.get("k") + self.stiffness0(), 0.0)) / (2 * np.pi)
+
+    def summary(self, n_harmonics=None) -> dict:
+        out = {"law": self.law_name, "parameters": {n: float(v) for n, v in zip(self.names, self.values)},
+               "n_sliders": self.n_sliders if self.law_name == "iwan4" else None,
+               "phi_min_ratio": self.phi_min_ratio if self.law_name == "iwan4" else None}
+        if n_harmonics is not None:
+            out.update(n_time_curve=_time_samples(n_harmonics), n_time_peak=_time_samples(n_harmonics, fine=True),
+                       reversals="at the exact extrema of the motion")
+        return out
+
+
+def hysteretic_model_of(summary, source="results.json") -> HystereticModel:
+    """The :class:`HystereticModel` of a selection's ``hysteretic_model`` summary.
+
+    Raises
+    ------
+    RecordError
+        A summary that does not hold together (naming ``source``).
+    """
+    try:
+        name = summary["law"]
+        pars = summary["parameters"]
+        names = tuple(pars)
+        values = np.array([float(pars[n]) for n in names])
+        cov = summary.get("covariance")
+        cov = (np.full((len(names), len(names)), np.nan) if cov is None
+               else np.array([[np.nan if x is None else float(x) for x in row] for row in cov], float))
+        derived = ((summary.get("joint_law") or {}).get("derived") or {})
+        model = HystereticModel(name, names, values, cov, int(derived.get("n_sliders", 60)),
+                                float(derived.get("phi_min_ratio", 1e-4)))
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise RecordError(f"{source}: selection hysteretic_model: not a fitted joint law ({exc!r})") from None
+    if name not in INDEPENDENT or not set(INDEPENDENT[name]) <= set(names):
+        raise RecordError(f"{source}: selection hysteretic_model: law {name!r} with parameters {list(names)} is not "
+                          f"one predict can solve (expected {sorted(INDEPENDENT)})")
+    if cov.shape != (len(names), len(names)):
+        raise RecordError(f"{source}: selection hysteretic_model: covariance of shape {cov.shape} for "
+                          f"{len(names)} parameters")
+    if not np.all(np.isfinite(values)):
+        raise RecordError(f"{source}: selection hysteretic_model: parameters not finite: {list(values)}")
+    return model
+
+
+def hysteretic_models(results, source="results.json") -> dict:
+    """``{preload: HystereticModel}`` of the preloads whose selection picked a hysteretic law."""
+    out = {}
+    for s in results.get("selection") or []:
+        if isinstance(s, dict) and isinstance(s.get("hysteretic_model"), dict):
+            out[s.get("preload")] = hysteretic_model_of(s["hysteretic_model"], source)
+    return out
+
+
+# --- the curve -------------------------------------------------------------------------------------
+
+class _Curve:
+    """A continued curve of the condensed engine in the form :func:`jointid.app.predict.predict_peak` reads."""
+
+    def __init__(self, hb_curve):
+        from ..signal.harmonics import series_max_abs
+
+        self.points = hb_curve.points
+        self.omega = np.array([p.omega for p in self.points])
+        self.q_max = np.array([series_max_abs(p.joint[0]) for p in self.points])
+        self.folds = tuple(hb_curve.folds)
+
+    def __len__(self):
+        return len(self.points)
+
+    @property
+    def stable(self):
+        """Unstable between each pair of successive folds (the middle branch of a single-mode response)."""
+        st = np.ones(len(self), bool)
+        f = list(self.folds)
+        for a, b in zip(f[0::2], f[1::2]):
+            st[a + 1:b] = False
+        return st
+
+
+def _continue(model, Q, n_harmonics, values=None):
+    """``(engine, curve)``: ``curve(lo_hz, hi_hz)`` continues the response at the curve's time samples."""
+    from .predict_peaks import DS_MAX
+
+    engine = model.engine(values)
+    N = _time_samples(n_harmonics)
+
+    def curve(lo, hi):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointidWarning)
+            with np.errstate(all="ignore"):
+                return _Curve(engine.continuation(2 * np.pi * lo, 2 * np.pi * hi, [0.0, 0.0, Q], n_harmonics,
+                                                  n_time=N, ds_max=DS_MAX, max_steps=200_000))
+    return engine, curve
+
+
+def _solve_at(engine, Q, omegas, guesses, n_harmonics):
+    """Steady states of ``engine`` at ``omegas`` at the fine time samples, each from its guess; ``None`` when
+    one fails or leaves the branch of its guess (``q_max`` off by 5 %)."""
+    from ..signal.harmonics import series_max_abs
+
+    N = _time_samples(n_harmonics, fine=True)
+    out, q = [], []
+    for w, g in zip(omegas, guesses):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                new = engine.solve(float(w), [0.0, 0.0, Q], n_harmonics, n_time=N, guess=g, tol=1e-11)
+        except (ConvergenceError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+        qn = series_max_abs(new.joint[0])
+        if not abs(qn / series_max_abs(g.joint[0]) - 1.0) < 0.05:
+            return None
+        out.append(new)
+        q.append(qn)
+    return out, np.asarray(q)
+
+
+def _peak_on(engine, Q, points, n_harmonics):
+    """Peak ``(frequency_hz, q_max, index)`` of ``engine`` at the frequencies of ``points`` (each its own
+    guess), or ``None`` (a point failed or left its branch, or the largest is an end)."""
+    from .predict_peaks import _located_peak
+
+    got = _solve_at(engine, Q, [p.omega for p in points], points, n_harmonics)
+    if got is None:
+        return None
+    w = np.array([p.omega for p in points])
+    k = int(np.argmax(got[1]))
+    return None if k in (0, w.size - 1) else _located_peak(w, got[1])
+
+
+def _refined_points(engine, Q, points, n_harmonics):
+    """Five steady states at the fine time samples, evenly about the peak (half the curve's local spacing
+    apart), so that the peak's parabola is centred: the curve's points about its peak are solved again at
+    the fine samples, the peak located on them, and the five points placed about it.  ``None`` on failure."""
+    from .predict_peaks import _located_peak
+
+    got = _solve_at(engine, Q, [p.omega for p in points], points, n_harmonics)
+    if got is None:
+        return None
+    sol, q = got
+    w = np.array([p.omega for p in sol])
+    k = int(np.argmax(q))
+    if k in (0, w.size - 1):
+        return None
+    f_star = _located_peak(w, q)[0]
+    h = 0.25 * abs(w[k + 1] - w[k - 1])
+    ws = 2 * np.pi * f_star + h * np.arange(-2, 3)
+    guesses = [sol[int(np.argmin(np.abs(w - x)))] for x in ws]
+    got = _solve_at(engine, Q, ws, guesses, n_harmonics)
+    return None if got is None else got[0]
+
+
+def _points_about(curve, i):
+    return curve.points[max(i - 3, 0):min(i + 4, len(curve))]
+
+
+def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined):
+    """``(se_frequency_hz, se_q_max, note)`` from the law's covariance (delta method); ``peak`` is the
+    curve's, ``refined`` the nominal points about it at the fine time samples (or ``None``): each
+    perturbed model is solved on them, the same points for every model."""
+    from .predict_peaks import predict_peak
+
+    idx = [model.names.index(n) for n in INDEPENDENT[model.law_name]]
+    C = model.covariance[np.ix_(idx, idx)]
+    if not np.all(np.isfinite(C)):
+        return float("nan"), float("nan"), "the joint law's covariance holds undefined entries: no standard error"
+    se = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    base = None if refined is None else _peak_on(model.engine(), Q, refined, n_harmonics)
+    J = np.zeros((2, len(idx)))
+
+    def peak_of(values):
+        try:
+            engine = model.engine(values)
+        except (JointidError, ValueError):
+            return None, None  # outside the law's domain
+        pk = None if base is None else _peak_on(engine, Q, refined, n_harmonics)
+        if pk is not None:
+            return np.asarray(pk[:2]) - np.asarray(base[:2]), True
+        _, fresh = _continue(model, Q, n_harmonics, values)
+        _, pk, _ = predict_peak(None, Q, span, n_harmonics, widen=False, curve=fresh, f1_hz=model.f1_hz)
+        return (None, False) if pk is None else (np.asarray(pk[:2]) - np.asarray(peak[:2]), True)
+
+    for j, k in enumerate(idx):
+        if not se[j] > 0:
+            continue
+        d = {}
+        for sign in (1.0, -1.0):
+            v = model.values.copy()
+            v[k] += sign * se[j]
+            d[sign], ok = peak_of(v)
+            if ok is False:
+                return float("nan"), float("nan"), (f"the peak leaves the band when {model.names[k]} moves by one "
+                                                    "standard error: no standard error")
+        if d[1.0] is not None and d[-1.0] is not None:
+            J[:, j] = (d[1.0] - d[-1.0]) / (2 * se[j])
+        elif d[1.0] is not None or d[-1.0] is not None:  # one side leaves the law's domain (beta >= 0, |chi| < 1)
+            sign = 1.0 if d[1.0] is not None else -1.0
+            J[:, j] = sign * d[sign] / se[j]
+    V = J @ C @ J.T
+    return float(math.sqrt(max(V[0, 0], 0.0))), float(math.sqrt(max(V[1, 1], 0.0))), None
+
+
+def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, widen=True, uncertainty=True) -> dict:
+    """The selected law's response at modal force ``Q``: the continued curve over ``span_hz`` (widened to the
+    peak when ``widen``), its peak re-solved at the fine time samples, and its standard errors.
+
+    Returns a dict: ``frequency_hz``, ``q_max``, ``stable`` (arrays along the curve), ``folds_hz``,
+    ``peak`` (``(frequency_hz, q_max)`` or ``None``), ``stderr`` (two floats, ``nan`` when not
+    available), ``span`` (the band used) and ``notes``.
+    """
+    from .predict_peaks import predict_peak
+
+    _, curve = _continue(model, Q, n_harmonics)
+    r, peak, span = predict_peak(None, Q, span_hz, n_harmonics, widen=widen, curve=curve, f1_hz=model.f1_hz)
+    f_hz = r.omega / (2 * np.pi)
+    notes = [("stability from the folds (the branch between two folds unstable); no time-integration check of "
+              "the hysteretic law's steady state")]
+    out = {"frequency_hz": f_hz, "q_max": np.asarray(r.q_max, float), "stable": r.stable,
+           "folds_hz": tuple(float(f_hz[i]) for i in r.folds), "peak": None,
+           "stderr": (float("nan"), float("nan")), "span": tuple(float(v) for v in span), "notes": notes}
+    if peak is None:
+        notes.append(f"no peak in {span[0]:.6g}-{span[1]:.6g} Hz: the response still grows at the edge of the band")
+        return out
+    # the points about the peak solved again with more time samples (see _time_samples), the peak located on them
+    refined = _refined_points(model.engine(), Q, _points_about(r, peak[2]), n_harmonics)
+    fine = None if refined is None else _peak_on(model.engine(), Q, refined, n_harmonics)
+    if fine is None:
+        notes.append(f"the peak's points could not be solved again at {_time_samples(n_harmonics, True)} time "
+                     f"samples: the peak is the curve's at {_time_samples(n_harmonics)} (about 0.05 % off)")
+    out["peak"] = tuple(float(x) for x in (peak if fine is None else fine)[:2])
+    if uncertainty:
+        try:
+            sf, sq, why = _peak_stderr(model, Q, n_harmonics, r, peak, span, refined if fine else None)
+        except (JointidError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            sf, sq, why = float("nan"), float("nan"), f"standard error not computed: {exc}"
+        out["stderr"] = (sf, sq)
+        if why:
+            notes.append(why)
+    return out

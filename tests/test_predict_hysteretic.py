@@ -1,0 +1,205 @@
+"""``jointid predict RESULTS.json`` with the hysteretic joint law that ``identify --terms auto`` selected.
+
+Ground truth: single-mode campaigns ``q'' + c q' + k q + f_joint(q) = Q cos(omega t)`` with a Jenkins or a
+discrete Iwan joint (60 sliders), made by the Runge-Kutta time integration of ``test_hysteretic_fsm`` (exact
+play operator; no harmonic balance of jointid), 0.5 % noise, written as a campaign folder; ``identify --terms
+auto`` on the two lower force levels of the design; ``predict`` at the design's top level and at 1.75 x the top
+fitted level.  The peaks are compared with a dense downward sweep of the generating model (the plain law, more
+harmonics and time samples, the largest computed point: no continuation, no peak interpolation, no exact
+reversals).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+from test_hysteretic_fsm import (
+    IWAN,
+    IWAN_LEVELS,
+    JENKINS,
+    JENKINS_LEVELS,
+    C,
+    K,
+    campaign,
+)
+
+from jointid.app.predict_hysteretic import ExactReversals
+from jointid.cli import main
+from jointid.identify.hysteretic import first_harmonic_peak
+from jointid.joints import Iwan4, Jenkins
+from jointid.simulate.structure_hb import CondensedHB
+
+
+def dense_sweep_peak(law, Q, n_harmonics=7, n_time=512):
+    """``(frequency_hz, q_max)``: largest ``max_t |q|`` of a downward sweep of the generating model, 41 points
+    over +-1 % of the first-harmonic peak, then 41 over the two steps about the largest."""
+    from jointid.signal.harmonics import series_max_abs
+
+    k0 = law.kt if isinstance(law, Jenkins) else law.K_T
+    w0 = math.sqrt(K + k0)
+    engine = CondensedHB([w0], [C / (2 * w0)], [[1.0]], [1.0], [law], k_model=k0)
+    fp, _ = first_harmonic_peak(K, C, law, Q)
+
+    def sweep(ws):
+        pts = engine.sweep(ws, [0.0, 0.0, Q], n_harmonics, n_time=n_time, tol=1e-11)
+        return np.array([series_max_abs(p.joint[0]) for p in pts])
+
+    ws = 2 * np.pi * fp * np.linspace(1.01, 0.99, 41)
+    q = sweep(ws)
+    i = int(np.argmax(q))
+    assert 0 < i < ws.size - 1
+    ws = np.linspace(ws[i - 1], ws[i + 1], 41)
+    q = sweep(ws)
+    j = int(np.argmax(q))
+    assert 0 < j < ws.size - 1
+    return ws[j] / (2 * np.pi), q[j]
+
+
+def _write_campaign(folder, data, rng, noise=0.005):
+    from jointid.io.campaign import write_campaign, write_csv_record
+
+    t, a, Qs, ws = data
+    entries = []
+    for i in range(len(Qs)):
+        F = Qs[i] * np.cos(ws[i] * t[i])
+        F = F + noise * np.std(F) * rng.standard_normal(F.size)
+        A = a[i] + noise * np.std(a[i]) * rng.standard_normal(a[i].size)
+        rel = f"records/{i:04d}.csv"
+        write_csv_record(folder / rel, t[i], {"force": F, "accel": A})
+        entries.append({"file": rel, "frequency_hz": float(ws[i] / (2 * np.pi)), "force_level": float(Qs[i]),
+                        "preload": "p"})
+    write_campaign(folder, "hysteretic predict test", entries, coordinates="modal")
+    return folder
+
+
+CASES = {"jenkins": (JENKINS, JENKINS_LEVELS, 0.06), "iwan4": (IWAN, IWAN_LEVELS, 0.05)}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("law_name", list(CASES))
+def test_predict_with_the_selected_hysteretic_law(law_name, tmp_path, capsys):
+    law, levels, span = CASES[law_name]
+    fitted, top = levels[:2], levels[2]
+    above = 1.75 * fitted[-1]
+    camp = _write_campaign(tmp_path / "campaign", campaign(law, fitted, span), np.random.default_rng(5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        code = main(["identify", str(camp), "--terms", "auto", "--out", str(tmp_path / "res"), "--no-figures",
+                     "--quiet"])
+    assert code in (0, 1)  # 1: an adequacy verdict of the polynomial stand-in, not this test's subject
+    sel = json.loads((tmp_path / "res" / "results.json").read_text())["selection"][0]
+    assert sel["hysteretic_model"] is not None and sel["hysteretic_model"]["law"] == law_name, sel["selected"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        code = main(["predict", str(tmp_path / "res"), "--force-levels", f"{top},{above}", "--out",
+                     str(tmp_path / "pred"), "--quiet"])
+    assert code == 0
+    d = json.loads((tmp_path / "pred" / "results.json").read_text())
+    assert d["models"][0]["joint_law"] == law_name and d["models"][0]["joint_law_model"]["law"] == law_name
+    for pred, (tol_f, tol_a) in zip(d["predictions"], ((0.05, 2.0), (0.1, 3.0))):
+        assert pred["joint_law"] == law_name and pred["error"] is None and pred["extrapolated"]
+        f_true, q_true = dense_sweep_peak(law, pred["modal_force"])
+        ef = 100 * (pred["peak_frequency_hz"] / f_true - 1)
+        ea = 100 * (pred["peak_q_max"] / q_true - 1)
+        zf = (pred["peak_frequency_hz"] - f_true) / pred["peak_frequency_hz_stderr"]
+        za = (pred["peak_q_max"] - q_true) / pred["peak_q_max_stderr"]
+        with capsys.disabled():
+            print(f"\n{law_name} F = {pred['force_level']:g}: peak {pred['peak_frequency_hz']:.6f} Hz "
+                  f"({ef:+.4f} %, z {zf:+.2g}), q_max {pred['peak_q_max']:.6g} ({ea:+.3f} %, z {za:+.2g})")
+        assert abs(ef) < tol_f and abs(ea) < tol_a
+        for key in ("peak_frequency_hz", "peak_q_max"):
+            se = pred[key + "_stderr"]
+            assert se is not None and 0 < se < 0.01 * pred[key]
+            lo, hi = pred[key + "_ci95"]
+            assert lo < pred[key] < hi
+        assert len(pred["curve"]["frequency_hz"]) == len(pred["curve"]["q_max"]) > 20
+
+
+def _hysteretic_results(folder, law, cov_scale=1e-4):
+    """A results.json as identify writes it with a hysteretic pick: the generating law itself as the selected
+    model (no identification), a linear stand-in in ``models``, modal force = force level."""
+    if isinstance(law, Jenkins):
+        names, values = ["k", "c", "kt", "Fs", "slip_displacement"], [K, C, law.kt, law.Fs, law.slip_displacement]
+        name = "jenkins"
+    else:
+        names = ["k", "c", "K_T", "F_S", "chi", "beta", "phi_max"]
+        values, name = [K, C, law.K_T, law.F_S, law.chi, law.beta, law.phi_max], "iwan4"
+    se = [cov_scale * abs(v) for v in values]
+    hm = {"law": name, "parameters": dict(zip(names, values)), "stderr": dict(zip(names, se)),
+          "covariance": np.diag(np.square(se)).tolist(), "joint_law": law.summary()}
+    k1 = K + (law.kt if name == "jenkins" else law.K_T)
+    d = {"jointid_version": "test", "run_id": "handmade",
+         "models": [{"preload": "p", "terms": ["q", "q'"], "amplitude_laws": {}, "parameter_names": ["omega1^2", "c"],
+                     "parameters": [k1, C], "stderr": [1.0, 1e-3], "covariance": [[1.0, 0.0], [0.0, 1e-6]],
+                     "q_max_range": [5e-4, 2e-3], "frequency_hz_range": [29.0, 33.0]}],
+         "groups": [{"preload": "p", "force_level": F, "pooled": {}} for F in (6.0, 10.0)],
+         "reprediction": {"groups": [{"preload": "p", "force_level": F, "forcing": F} for F in (6.0, 10.0)]},
+         "selection": [{"preload": "p", "selected": name, "stand_in": "linear", "hysteretic_model": hm}]}
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "results.json").write_text(json.dumps(d))
+    return folder / "results.json"
+
+
+def test_exact_reversals_jacobian_and_samples_on_the_extrema():
+    """The wrapped law's Jacobian against central differences; where the extrema lie on samples the force is the
+    plain law's; where they lie between samples the reversal uses the true extremum (closed-form backbone)."""
+    law = Iwan4(2.0, 1000.0, -0.5, 0.5, n_sliders=20, phi_min_ratio=1e-3)
+    w = ExactReversals(law)
+    n = 64
+    t = 2 * np.pi * np.arange(n) / n
+    u = 0.004 * np.cos(t + 0.3) + 0.0008 * np.sin(3 * t + 0.1) + 0.0002
+    _, D = w.aft(u)
+    Dn = np.empty_like(D)
+    for m in range(n):
+        e = np.zeros(n)
+        e[m] = 1e-9
+        Dn[:, m] = (w.aft(u + e, jacobian=False)[0] - w.aft(u - e, jacobian=False)[0]) / 2e-9
+    assert np.abs(D - Dn).max() < 1e-6 * np.abs(D).max()
+    u0 = 0.004 * np.cos(t)  # extrema at samples 0 and n/2
+    assert np.allclose(w.aft(u0, jacobian=False)[0], law.aft(u0, jacobian=False)[0], rtol=0, atol=1e-12)
+    jen = Jenkins(1000.0, 2.0)
+    phase = np.pi / n  # the maximum half-way between two samples: the plain law reverses below it
+    u1 = 0.004 * np.cos(t + phase)
+    f_exact = ExactReversals(jen).aft(u1, jacobian=False)[0]
+    f_plain = jen.aft(u1, jacobian=False)[0]
+    # sample 0 is the first after the maximum (t = -pi / n), still stuck: Fs - kt (a - u) with the true a = 0.004
+    j = 0
+    assert f_exact[j] == pytest.approx(2.0 - 1000.0 * (0.004 - u1[j]), rel=1e-9)
+    assert abs(f_plain[j] - f_exact[j]) > 1e-4
+
+
+def test_handmade_hysteretic_results_predict_with_the_law(tmp_path):
+    """The law of a results.json's hysteretic selection is solved, named in results.json, near the dense sweep."""
+    from jointid.app.predict import predict_from_results
+
+    file = _hysteretic_results(tmp_path / "res", JENKINS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = predict_from_results(file, "14", n_harmonics=3, uncertainty=False)
+    (pred,) = res.predictions
+    assert pred.joint_law == "jenkins" and pred.error is None
+    d = pred.summary()
+    assert d["joint_law"] == "jenkins" and d["joint_law_model"]["parameters"]["kt"] == JENKINS.kt
+    assert res.summary()["models"][0]["joint_law"] == "jenkins"
+    f_fh, q_fh = first_harmonic_peak(K, C, JENKINS, 14.0)  # the first harmonic only: close, not equal
+    assert abs(pred.peak_frequency_hz / f_fh - 1) < 5e-3 and abs(pred.peak_q_max / q_fh - 1) < 0.05
+    assert "jenkins joint law" in pred.report()
+
+
+def test_bad_hysteretic_model_is_refused_naming_the_file(tmp_path, capsys):
+    from jointid.app.predict import predict_from_results
+    from jointid.errors import RecordError
+
+    file = _hysteretic_results(tmp_path / "res", JENKINS)
+    d = json.loads(file.read_text())
+    d["selection"][0]["hysteretic_model"]["law"] = "bouc-wen"
+    file.write_text(json.dumps(d))
+    with pytest.raises(RecordError, match="results.json.*hysteretic_model.*'bouc-wen'"):
+        predict_from_results(file, "14", uncertainty=False)
+    code = main(["predict", str(file), "--force-levels", "14", "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "bouc-wen" in err and "Traceback" not in err
