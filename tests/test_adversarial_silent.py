@@ -80,9 +80,12 @@ def test_simulate_never_deletes_what_it_did_not_create(tmp_path, capsys, what):
     ("k3 = 5e6, c = -0.08", "", "[model] coefficients.c: the damping coefficient c of term \"q'\" is -0.08"),
     ("k3 = 5e6, c = 0.08, c_cubic = -1.0", "", "coefficients.c_cubic: the damping coefficient c_cubic"),
     ("k3 = 5e30, c = 0.08", "", "coefficients.k3 = 5e+30"),
+    # so softening that harmonic balance finds no solution of its equations at all
+    ("k3 = 1e300, c = 0.08", "", "harmonic balance found no steady state at force level 1; the restoring force "
+                                 "stops pulling back to rest by |q| = "),
     # the law is positive at rest but negative at the amplitudes reached near resonance
     ("k3 = 5e6", "amplitude_laws = { c = [0.08, -1000.0] }\n", "[model] amplitude_laws.c: the damping coefficient"),
-], ids=["negative_c", "negative_cubic_damping", "softening_k3_5e30", "damping_law_negative"])
+], ids=["negative_c", "negative_cubic_damping", "softening_k3_5e30", "softening_k3_1e300", "damping_law_negative"])
 def test_simulate_refuses_a_model_that_is_not_physical(tmp_path, capsys, coefficients, laws, pattern):
     terms = "q + -q^3 + q' + q'^3"
     code, _, err = _run(["simulate", _sim(tmp_path, coefficients=coefficients, laws=laws, n=3, terms=terms), "--out",

@@ -369,10 +369,12 @@ def simulate_steady_states(cfg: SimulationConfig, progress=False):
             edge = _well_edge(model, np.asarray(model.coefficients, float), F / model.omega1 ** 2)
             if edge is None:
                 raise
-            raise ConvergenceError(f"{exc}\n{loc}: the restoring force stops pulling back to rest by |q| = "
-                                   f"{edge:.4g} ({_turning_terms(model, model.coefficients, edge)}), below the "
-                                   f"static deflection {F / model.omega1 ** 2:.4g} of force level {F:g}: the model "
-                                   f"cannot hold this force (it escapes the well)") from None
+            raise ConvergenceError(f"{loc}: harmonic balance found no steady state at force level {F:g}; the "
+                                   f"restoring force stops pulling back to rest by |q| = {edge:.4g} "
+                                   f"({_turning_terms(model, model.coefficients, edge)}), below the static "
+                                   f"deflection {F / model.omega1 ** 2:.4g} of that force: the model cannot hold it "
+                                   f"(it escapes the well); lower the force levels or the nonlinear coefficient") \
+                from exc
         _check_bounded(model, frf.states, loc)
         out.append((preload, F, frf))
         bar.update(1)
