@@ -147,7 +147,7 @@ def test_import_corpus(tmp_path, capsys, name):
     (tmp_path / "d.toml").write_text(text)
     code, _, err = _run(["import", tmp_path / "d.toml", "--out", tmp_path / "out"], capsys)
     assert code == 2 and len(__import__("re").findall(pattern, err)) >= 1, err
-    assert "d.toml" in err
+    assert "d.toml" in err and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "out").exists()
 
 

@@ -614,6 +614,8 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out, str
         entries.append({"file": rel, **keys})
         written.append((i, rel))
     if not entries:
+        if len(failed) == 1:  # one line, as every refusal of the command
+            raise RecordError(f"{desc}: no record could be imported: {failed[0][1]}")
         raise RecordError(f"{desc}: no record could be imported:\n  " + "\n  ".join(m for _, m in failed))
     write_campaign(out, str(head.get("name", desc.stem)), entries, coordinates=head.get("coordinates", "modal"),
                    structure=d.get("structure"))
