@@ -30,6 +30,51 @@ def jenkins_harmonic_stiffness(s):
     return (t - 0.5 * np.sin(2.0 * t)) / np.pi
 
 
+#: Elements (samples x batch x sliders) evaluated at once by :func:`_slider_aft`: blocks of samples
+#: small enough to stay in the processor's cache (fresh large arrays cost more than the arithmetic).
+_BLOCK_ELEMENTS = 1 << 15
+
+
+def _play_block(s, x, phi, end_only=False):
+    """Slider positions after each sample of ``s`` (batch ``B``, ``T`` samples), starting from ``x`` (B, m).
+
+    Exactly the step ``x <- min(max(x, s_t - phi), s_t + phi)`` repeated over the samples, without
+    a loop over them: on a stretch where ``s`` is monotone the steps compose to one step from the
+    stretch's start (increasing: ``max(x_start, s_t - phi)``, the ``min`` a no-op; decreasing
+    alike), and ``max``/``min`` only select, so the values are the loop's to the bit.  The loop
+    runs over the knots only (the first sample and every sample where the sign of the
+    difference changes; a flat step counts as its own sign, so equal samples only add knots,
+    and a NaN makes every neighbouring sample a knot).  Returns ``(T, B, m)``, or with
+    ``end_only`` the state after the last sample ``(B, m)``.
+    """
+    B, T = s.shape
+    kn = np.zeros((B, T), dtype=bool)
+    kn[:, 0] = True
+    if T > 2:
+        sg = np.sign(np.diff(s, axis=1))
+        kn[:, 1:-1] = sg[:, :-1] != sg[:, 1:]
+    nk = kn.sum(axis=1)
+    q = int(nk.max()) if B else 0
+    order = np.argsort(~kn, axis=1, kind="stable")[:, :q]  # knot samples first, in time order
+    rows = np.arange(B)
+    pos = np.where(np.arange(q)[None, :] < nk[:, None], order, order[rows, nk - 1][:, None])  # pad: last knot again
+    S = np.empty((q + 1,) + x.shape)
+    S[0] = x
+    for i in range(q):  # a repeated knot is the same step again (a no-op)
+        sk = s[rows, pos[:, i]][:, None]
+        S[i + 1] = np.minimum(np.maximum(S[i], sk - phi), sk + phi)
+    before = np.cumsum(kn, axis=1) - kn  # knots strictly before each sample: the stretch's start state
+    if end_only:
+        st = s[:, -1:]
+        return np.minimum(np.maximum(S[before[:, -1], rows], st - phi), st + phi)
+    st = s.T[:, :, None]
+    X = S[before.T, rows[None, :]]
+    bound = np.subtract(st, phi)
+    np.maximum(X, bound, out=X)
+    np.add(st, phi, out=bound)
+    return np.minimum(X, bound, out=X)
+
+
 def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     """Periodic force of parallel Jenkins elements over one sampled period (two sweeps).
 
@@ -41,37 +86,57 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     depends on it).  The Jacobian follows the same sweep: the play operator returns
     either the old slider position or ``u_j -+ phi``, so ``d x_i(t_j) / d u`` is the unit
     vector of the sample where element ``i`` last slipped (zero if it never did).
+
+    The sweeps are evaluated a monotone stretch of ``u`` at a time (:func:`_play_block`), the
+    values bit-identical to the sample-by-sample play operator; the force's ``x @ k`` is the
+    same matrix product per sample as the sample loop's (one ``dot`` or ``gemv`` per sample
+    over the same batch), stacked in one call.
     """
     u = np.asarray(u, float)
     n = u.shape[-1]
     batch = u.shape[:-1]
     m = k.size
-    x = np.array(np.broadcast_to(x0, batch + (m,)), dtype=float)
+    nb = int(np.prod(batch, dtype=int))
+    x = np.array(np.broadcast_to(x0, batch + (m,)), dtype=float).reshape(nb, m)
     ktot = float(k.sum())
-    f = np.empty(u.shape)
-    last = np.full(x.shape, -1, dtype=np.intp)
-    lasts = np.empty((n,) + x.shape, dtype=np.intp) if jacobian else None
-    for step in range(2 * n):
-        j = step % n
-        uj = u[..., j, None]
-        xn = np.minimum(np.maximum(x, uj - phi), uj + phi)
+    ub = u.reshape(nb, n)
+    ext = np.concatenate([ub, ub], axis=1)  # the two sweeps
+    fT = np.empty((n, nb))
+    last = np.full((nb, m), -1, dtype=np.intp)  # step of each element's latest slip so far
+    lasts = np.empty((n, nb, m), dtype=np.intp) if jacobian else None
+    stack = (batch if batch else (1,)) + (m,)  # per sample: the sample loop's operand shape
+    tb = max(2, _BLOCK_ELEMENTS // max(nb * m, 1))
+    for t0 in range(0, 2 * n, tb):
+        t1 = min(2 * n, t0 + tb)
+        if t1 <= n and not jacobian:
+            x = _play_block(ext[:, t0:t1], x, phi, end_only=True)
+            continue
+        X = _play_block(ext[:, t0:t1], x, phi)
         if jacobian:
-            last = np.where(xn != x, j, last)
-        x = xn
-        if step >= n:
-            f[..., j] = ktot * u[..., j] - x @ k
+            L = np.empty(X.shape, dtype=np.intp)
+            L[0] = np.where(X[0] != x, t0, last)
+            L[1:] = np.where(X[1:] != X[:-1], np.arange(t0 + 1, t1)[:, None, None], -1)
+            np.maximum.accumulate(L, axis=0, out=L)
+            last = L[-1].copy()
+        a = max(t0, n)
+        if a < t1:
+            X2 = X[a - t0 :]
+            fT[a - n : t1 - n] = ktot * ext[:, a:t1].T - np.matmul(X2.reshape((t1 - a,) + stack), k).reshape(t1 - a, nb)
             if jacobian:
-                lasts[j] = last
+                dest = lasts[a - n : t1 - n]
+                dest[...] = L[a - t0 :]
+                dest[dest >= n] -= n  # the sample within the period
+        x = X[-1].copy()
+    f = fT.T.reshape(u.shape)
     if not jacobian:
         return f, None
-    nb = int(np.prod(batch, dtype=int))
-    L = lasts.reshape(n, nb, m)
-    rows = np.broadcast_to(np.arange(n)[:, None, None], L.shape)
-    bidx = np.broadcast_to(np.arange(nb)[None, :, None], L.shape)
-    w = np.broadcast_to(k, L.shape)
+    L = lasts
     seen = L >= 0
-    flat = (bidx * n * n + rows * n + L)[seen]
-    D = -np.bincount(flat, weights=w[seen], minlength=nb * n * n).astype(float).reshape(nb, n, n)
+    flat = (L + (np.arange(nb)[None, :, None] * (n * n) + np.arange(n)[:, None, None] * n))[seen]
+    # the weights summed per bin in the order of (sample, batch, element), as before: the same bits
+    D = np.bincount(flat, weights=np.broadcast_to(k, L.shape)[seen], minlength=nb * n * n)
+    D = np.asarray(D, dtype=float).reshape(nb, n, n)  # (integer when nothing slipped)
+    np.negative(D, out=D)
     D[:, np.arange(n), np.arange(n)] += ktot
     if centre:
         k_never = (np.where(L[0] < 0, k, 0.0)).sum(axis=-1)  # the same elements at every sample
