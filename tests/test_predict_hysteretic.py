@@ -4,15 +4,13 @@ Ground truth: single-mode campaigns ``q'' + c q' + k q + f_joint(q) = Q cos(omeg
 discrete Iwan joint (60 sliders), made by the Runge-Kutta time integration of ``test_hysteretic_fsm`` (exact
 play operator; no harmonic balance of jointid), 0.5 % noise, written as a campaign folder; ``identify --terms
 auto`` on the two lower force levels of the design; ``predict`` at the design's top level and at 1.75 x the top
-fitted level.  The peaks are compared with a dense downward sweep of the generating model (the plain law, more
-harmonics and time samples, the largest computed point: no continuation, no peak interpolation, no exact
-reversals).
+fitted level.  The peaks are compared with a dense sweep of dwells of the generating model by the same time
+integration (no harmonic balance, no truncation to harmonics).
 """
 
 from __future__ import annotations
 
 import json
-import math
 import warnings
 
 import numpy as np
@@ -25,38 +23,51 @@ from test_hysteretic_fsm import (
     C,
     K,
     campaign,
+    integrate,
+    sliders_of,
 )
 
 from jointid.app.predict_hysteretic import ExactReversals
 from jointid.cli import main
 from jointid.identify.hysteretic import first_harmonic_peak
 from jointid.joints import Iwan4, Jenkins
-from jointid.simulate.structure_hb import CondensedHB
 
 
-def dense_sweep_peak(law, Q, n_harmonics=7, n_time=512):
-    """``(frequency_hz, q_max)``: largest ``max_t |q|`` of a downward sweep of the generating model, 41 points
-    over +-1 % of the first-harmonic peak, then 41 over the two steps about the largest."""
+def _q_max(q_period, n_harmonics=60):
+    """``max_t |q|`` of one period of equispaced samples (its harmonic series to machine precision)."""
     from jointid.signal.harmonics import series_max_abs
 
-    k0 = law.kt if isinstance(law, Jenkins) else law.K_T
-    w0 = math.sqrt(K + k0)
-    engine = CondensedHB([w0], [C / (2 * w0)], [[1.0]], [1.0], [law], k_model=k0)
+    X = np.fft.rfft(q_period)[: n_harmonics + 1] * (2.0 / q_period.size)
+    c = np.empty(2 * n_harmonics + 1)
+    c[0] = X[0].real / 2
+    c[1::2], c[2::2] = X[1:].real, -X[1:].imag
+    return series_max_abs(c)
+
+
+def dense_sweep_peak(law, Q):
+    """``(frequency_hz, q_max)`` of the generating model by time integration: 21 dwells over +-1 % of the
+    first-harmonic peak, 21 over the two steps about the largest, and the parabola through the three largest."""
+    sl = sliders_of(law)
+
+    def dwells(ws):
+        steps = 256
+        _, q, _, err = integrate(K, C, sl.stiffness, sl.slip_displacement, np.full(ws.size, Q), ws, steps=steps,
+                                 record=1, sub=1)
+        assert err.max() < 1e-5
+        return np.array([_q_max(x[-steps:]) for x in q])
+
     fp, _ = first_harmonic_peak(K, C, law, Q)
-
-    def sweep(ws):
-        pts = engine.sweep(ws, [0.0, 0.0, Q], n_harmonics, n_time=n_time, tol=1e-11)
-        return np.array([series_max_abs(p.joint[0]) for p in pts])
-
-    ws = 2 * np.pi * fp * np.linspace(1.01, 0.99, 41)
-    q = sweep(ws)
+    ws = 2 * np.pi * fp * np.linspace(0.99, 1.01, 21)
+    q = dwells(ws)
     i = int(np.argmax(q))
     assert 0 < i < ws.size - 1
-    ws = np.linspace(ws[i - 1], ws[i + 1], 41)
-    q = sweep(ws)
+    ws = np.linspace(ws[i - 1], ws[i + 1], 21)
+    q = dwells(ws)
     j = int(np.argmax(q))
     assert 0 < j < ws.size - 1
-    return ws[j] / (2 * np.pi), q[j]
+    c = np.polyfit(ws[j - 1:j + 2] - ws[j], q[j - 1:j + 2], 2)
+    x = -c[1] / (2 * c[0])
+    return (ws[j] + x) / (2 * np.pi), float(np.polyval(c, x))
 
 
 def _write_campaign(folder, data, rng, noise=0.005):

@@ -14,6 +14,15 @@ modal force per unit of force level that identify's re-prediction used for the m
 levels (``reprediction.groups[*].forcing / force_level``; the mode shape at the force
 point in a physical campaign, the identified gain with an unknown force gain).
 
+A hysteretic joint law
+    When ``--terms auto`` picked a hysteretic law (``selection[*].hysteretic_model``: Jenkins
+    or four-parameter Iwan, fitted to the records' loops), that law is solved instead of the
+    polynomial stand-in in ``models``: ``q'' + c q' + k q + f_joint(q) = Q sin(omega t)`` by the
+    harmonic balance of :class:`jointid.simulate.structure_hb.CondensedHB` with one mode
+    (:mod:`jointid.app.predict_hysteretic`), its standard errors from the law's covariance.
+    Each prediction's ``joint_law`` names the restoring force solved (``"polynomial"``,
+    ``"jenkins"``, ``"iwan4"``) and ``joint_law_model`` holds the law's parameters.
+
 The peak
     ``peak_q_max`` is the largest ``q_max`` on the curve continued from below resonance
     (through the folds of a softening or hardening resonance it is the top of the upper

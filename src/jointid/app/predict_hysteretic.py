@@ -287,23 +287,34 @@ def _solve_at(engine, Q, omegas, guesses, n_harmonics):
     return out, np.asarray(q)
 
 
-def _peak_on(engine, Q, points, n_harmonics):
-    """Peak ``(frequency_hz, q_max, index)`` of ``engine`` at the frequencies of ``points`` (each its own
-    guess), or ``None`` (a point failed or left its branch, or the largest is an end)."""
+def _peak_on(engine, Q, points, n_harmonics, max_shifts=4):
+    """Peak ``(frequency_hz, q_max, index)`` of ``engine`` on the evenly spaced frequencies of ``points`` (each
+    the guess of its own steady state), or ``None`` (a point failed or left its branch).  When the largest
+    point is an end, the frequencies are shifted along the same lattice (whole steps) until it is inside,
+    so that every model's peak is located on the same grid."""
     from .predict_peaks import _located_peak
 
-    got = _solve_at(engine, Q, [p.omega for p in points], points, n_harmonics)
-    if got is None:
-        return None
     w = np.array([p.omega for p in points])
-    k = int(np.argmax(got[1]))
-    return None if k in (0, w.size - 1) else _located_peak(w, got[1])
+    guesses = list(points)
+    step = (w[-1] - w[0]) / (w.size - 1)
+    for _ in range(max_shifts + 1):
+        got = _solve_at(engine, Q, w, guesses, n_harmonics)
+        if got is None:
+            return None
+        sol, q = got
+        k = int(np.argmax(q))
+        if 0 < k < w.size - 1:
+            return _located_peak(w, q)
+        w = w + (k - (w.size - 1) // 2) * step
+        guesses = [sol[int(np.argmin(np.abs(np.array([p.omega for p in sol]) - x)))] for x in w]
+    return None
 
 
 def _refined_points(engine, Q, points, n_harmonics):
-    """Five steady states at the fine time samples, evenly about the peak (half the curve's local spacing
-    apart), so that the peak's parabola is centred: the curve's points about its peak are solved again at
-    the fine samples, the peak located on them, and the five points placed about it.  ``None`` on failure."""
+    """Seven steady states at the fine time samples, evenly about the peak (a quarter of the curve's local
+    spacing apart), so that the peak's parabola is centred: the curve's points about its peak are solved
+    again at the fine samples, the peak located on them, seven points placed about it and shifted along
+    their lattice until the largest is the middle one.  ``None`` on failure."""
     from .predict_peaks import _located_peak
 
     got = _solve_at(engine, Q, [p.omega for p in points], points, n_harmonics)
@@ -315,11 +326,20 @@ def _refined_points(engine, Q, points, n_harmonics):
     if k in (0, w.size - 1):
         return None
     f_star = _located_peak(w, q)[0]
-    h = 0.25 * abs(w[k + 1] - w[k - 1])
-    ws = 2 * np.pi * f_star + h * np.arange(-2, 3)
+    h = 0.125 * abs(w[k + 1] - w[k - 1])
+    ws = 2 * np.pi * f_star + h * np.arange(-3, 4)
     guesses = [sol[int(np.argmin(np.abs(w - x)))] for x in ws]
-    got = _solve_at(engine, Q, ws, guesses, n_harmonics)
-    return None if got is None else got[0]
+    for _ in range(5):
+        got = _solve_at(engine, Q, ws, guesses, n_harmonics)
+        if got is None:
+            return None
+        sol, q = got
+        k = int(np.argmax(q))
+        if k == 3:
+            return sol
+        ws = ws + (k - 3) * h
+        guesses = [sol[int(np.argmin(np.abs(np.array([p.omega for p in sol]) - x)))] for x in ws]
+    return None
 
 
 def _points_about(curve, i):

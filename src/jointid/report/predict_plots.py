@@ -79,13 +79,14 @@ def plot_predictions(predictions, ax=None, *, title=None):
 
 
 def prediction_rows(predictions) -> list:
-    """One row per prediction: preload, force level, modal force, peak with 95 % intervals, flags."""
+    """One row per prediction: preload, force level, modal force, the model solved (polynomial terms or the
+    hysteretic joint law), peak with 95 % intervals, flags."""
     from ..rounding import format_ci, format_pm, format_value
 
     rows = []
     for p in predictions:
         row = {"preload": p.preload, "force level": format_value(p.force_level),
-               "modal force": format_value(p.modal_force)}
+               "modal force": format_value(p.modal_force), "model": getattr(p, "joint_law", "polynomial")}
         if p.error:
             row.update({"peak frequency [Hz]": "failed", "peak q_max [m]": p.error[:80]})
         elif not p.has_peak:
