@@ -84,3 +84,33 @@ def test_jenkins_with_a_cubic_spring_recovers_its_parameters(cubic_campaign):
     ft, at = first_harmonic_peak(K, C, JENKINS, JENKINS_LEVELS[-1], k3=k3)
     assert abs(fq / ft - 1) < 2e-4 and abs(aq / at - 1) < 5e-3
     assert math.isfinite(res.loop(sigs[6]).rms_difference) and res.loop(sigs[6]).rms_difference < 0.05
+
+
+@pytest.mark.slow
+def test_fit_on_the_fundamental_only(cubic_campaign):
+    """``fit_harmonics=1``: the same campaign compared on the first harmonic only (what a single-mode model of a
+    structure represents) still recovers the parameters within their standard errors."""
+    k3, data = cubic_campaign
+    sigs = noisy(data, np.random.default_rng(32))
+    full = HystereticForceStateMapping("jenkins+cubic").fit(sigs).result_
+    res = HystereticForceStateMapping("jenkins+cubic", fit_harmonics=1).fit(sigs).result_
+    truth = {"k": K, "c": C, "kt": JENKINS.kt, "Fs": JENKINS.Fs, "k3": k3}
+    z = {n: (res.get(n) - v) / res.get_stderr(n) for n, v in truth.items()}
+    print({n: round(v, 2) for n, v in z.items()}, "residual rms", round(res.residual_rms, 3))
+    assert all(abs(v) < 2.5 for v in z.values()), z
+    # the residual's scale: each record's weight is its force and acceleration noise together, but near
+    # resonance the acceleration noise of the fundamental largely cancels in q'' + k q, so this rms reads
+    # below one (0.26 here); the standard errors come from the sandwich, which propagates it exactly
+    assert res.residual_rms < 1.5
+    print("standard errors, fundamental only / all harmonics:",
+          {n: round(res.get_stderr(n) / full.get_stderr(n), 2) for n in truth})
+    assert full.residual_rms > 0.5  # the same records with all harmonics: the residual at the noise
+
+
+def test_bad_fit_harmonics():
+    from jointid.errors import IdentificationError
+
+    with pytest.raises(IdentificationError, match="fit_harmonics"):
+        HystereticForceStateMapping("jenkins", fit_harmonics=0)
+    with pytest.raises(IdentificationError, match="law must be one of"):
+        HystereticForceStateMapping("iwan4+quintic").fit([])

@@ -172,8 +172,10 @@ class LevelPrediction:
     half_width_percent : float
         Half the model's -3 dB width at the peak, relative to the peak frequency [%].
     score : float
-        ``hypot(peak amplitude error, peak frequency error / half width)`` when the peak is
-        resolved, else the rms of the dwell errors (both as fractions).
+        ``hypot(peak amplitude error, peak frequency error / half width)`` when the dwells
+        resolve the peak (bracketed, at most the half width apart; also when the model has a
+        fold among the three dwells, compared on their own branch: the kind of score is the
+        data's, the same for every model), else the rms of the dwell errors (both as fractions).
     far_from_branch : bool
         Some dwell is further than 10 % from every steady state of the model.
     """
@@ -233,17 +235,24 @@ def level_errors(model, forcing, omegas, a_measured, predictor=None) -> LevelPre
         hw = 0.5 * abs(ks) / (wp * wp)  # half the -3 dB width over omega (full width Ks / omega^2, linear: 2 zeta)
     except (IdentificationError, ValueError, ArithmeticError):
         wp = ap = float("nan")
+    compared = False
     if 0 < km < w.size - 1 and am[km - 1] < am[km] > am[km + 1] and np.isfinite(hw):
         spacing = float(np.max(np.diff(w[km - 1: km + 2]))) / float(w[km])
         three = pred[km - 1: km + 2]
-        if spacing <= hw and np.all(nb[km - 1: km + 2] == 1) and np.all(np.isfinite(three)):
-            resolved = True
+        if spacing <= hw and np.all(np.isfinite(three)):
+            # the dwells resolve the peak: every model is scored on it, on the dwells' own branch; a model
+            # with a fold among the three dwells is not let off to the milder rms of the dwells (the score
+            # must not change its kind with the model), but its peak is not quoted as resolved
+            compared = True
+            resolved = bool(np.all(nb[km - 1: km + 2] == 1))
             fm, amx = parabolic_peak(w[km - 1: km + 2], am[km - 1: km + 2])
             fp, apx = parabolic_peak(w[km - 1: km + 2], three)
             fe = 100.0 * (fp / fm - 1.0)
             ae = 100.0 * (apx / amx - 1.0)
-    if resolved:
+    if compared:
         score = float(math.hypot(ae / 100.0, fe / 100.0 / hw))
+        if not resolved:
+            fe = ae = float("nan")
     else:
         score = float(np.sqrt(np.mean(err**2))) if np.all(np.isfinite(err)) else float("inf")
     return LevelPrediction(100.0 * err[inv], nb[inv], resolved, fe, ae, 100.0 * hw,

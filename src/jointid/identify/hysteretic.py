@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize
@@ -90,6 +90,19 @@ class _Record:
     q_max: float
     frequency_hz: float
     n_samples: int
+
+    @property
+    def rows(self) -> int:
+        """Coefficients of the restoring force compared (harmonics ``1..`` of ``U``'s size)."""
+        return self.U.shape[0]
+
+    def fitted_on(self, n_harmonics):
+        """The record compared on its first ``n_harmonics`` harmonics only (``None``: all of them)."""
+        if n_harmonics is None or n_harmonics >= self.H:
+            return self
+        m = 2 * int(n_harmonics)
+        G = self.U.T @ self.U
+        return replace(self, U=np.linalg.cholesky(G[:m, :m]).T)
 
 
 def _prepare(sig: StateSignals, i: int) -> _Record:
@@ -427,6 +440,19 @@ class HystereticForceStateMapping:
         ``chi``, ``beta``) instead of the coarse grid.
     search_evaluations, max_evaluations : int
         Evaluations allowed to each local search from the coarse grid and to the final one.
+    fit_harmonics : int, optional
+        Compare the restoring force on its first ``fit_harmonics`` harmonics only (default: all
+        the records' harmonics).  A single-mode model of a structure represents the fundamental;
+        the higher harmonics of measured responses also carry the higher modes (on the virtual
+        rig the 5th and 6th harmonics of mode 1 lie near mode 2), which no single-mode law can
+        follow and which then bias its parameters.
+    micro_slip_reach : float, optional
+        For the Iwan law: when the fitted macro-slip onset ``phi_max`` lies below this multiple
+        of the largest measured amplitude, the fit is repeated with ``phi_max`` held at or above
+        it, and that micro-slip law is kept if it fits as well (chi-square increase below 4 on the
+        calibrated residual).  Records that do not show the joint's macro-slip cannot place its
+        onset; a law that ends its micro-slip just beyond the data would change regime where
+        nothing supports it, and extrapolate with too little dissipation.  A warning says so.
 
     Attributes
     ----------
@@ -436,7 +462,11 @@ class HystereticForceStateMapping:
     """
 
     def __init__(self, law="jenkins", n_time=512, n_sliders=60, phi_min_ratio=1e-4, start=None, search_evaluations=200,
-                 max_evaluations=400):
+                 max_evaluations=400, fit_harmonics=None, micro_slip_reach=None):
+        self.fit_harmonics = None if fit_harmonics is None else int(fit_harmonics)
+        if self.fit_harmonics is not None and self.fit_harmonics < 1:
+            raise IdentificationError(f"fit_harmonics must be at least 1, got {fit_harmonics!r}")
+        self.micro_slip_reach = None if micro_slip_reach is None else float(micro_slip_reach)
         self.search_evaluations = int(search_evaluations)
         self.max_evaluations = int(max_evaluations)
         self.law = law
@@ -469,11 +499,11 @@ class HystereticForceStateMapping:
         fc, _ = self._law_coeffs(shape, eta, U, P, recs)
         blocks, ys = [], []
         for i, r in enumerate(recs):
-            m = 2 * r.H
+            m, n = 2 * r.H, r.rows
             cols = [r.d[1:], r.v[1:], fc[i, :m]] + ([] if c3 is None else [c3[i, :m]])
-            X = np.column_stack(cols)
+            X = np.column_stack(cols)[:n]
             blocks.append(W[i] * (r.U @ X))
-            ys.append(W[i] * (r.U @ r.y))
+            ys.append(W[i] * (r.U @ r.y[:n]))
         return np.vstack(blocks), np.concatenate(ys)
 
     def _projected(self, shape, eta, U, P, recs, W, c3=None):
@@ -492,7 +522,7 @@ class HystereticForceStateMapping:
             raise IdentificationError(f"{context}the hysteretic force-state mapping needs at least 3 records, got "
                                       f"{len(sigs)}")
         shape = _SHAPES[base](n_sliders=self.n_sliders, phi_min_ratio=self.phi_min_ratio)
-        recs = [_prepare(s, i) for i, s in enumerate(sigs)]
+        recs = [_prepare(s, i).fitted_on(self.fit_harmonics) for i, s in enumerate(sigs)]
         qmax = np.array([r.q_max for r in recs])
         W = np.array([1.0 / math.sqrt(r.s_force**2 + r.s_accel**2) for r in recs])
         U, P, E = self._periods(recs)
@@ -526,10 +556,11 @@ class HystereticForceStateMapping:
                        key=lambda r: r.cost)
             eta0 = np.clip(best.x, lo_a, hi_a)
         sol = optimize.least_squares(proj, eta0, max_nfev=self.max_evaluations, **opts)
+        warn = []
+        sol, lo = self._micro_slip(shape, sol, proj, opts, lo, hi, qmax, context, warn)
         eta = np.asarray(sol.x, float)
         res, beta = self._projected(shape, eta, U, P, recs, W, c3)
         p = np.concatenate([beta[:3], eta, beta[3:]])  # (k, c, scale, eta..., [k3])
-        warn = []
         at_bound = [n for n, v, l, h in zip(shape.names, eta, lo, hi) if min(v - l, h - v) <= 1e-6 * (1 + abs(v))]
         if at_bound:
             warn.append(f"{context}{', '.join(at_bound)} at the edge of its range: the parameter is not resolved "
@@ -568,6 +599,37 @@ class HystereticForceStateMapping:
         self.covariance_ = cov
         return self
 
+    def _micro_slip(self, shape, sol, proj, opts, lo, hi, qmax, context, warn):
+        """``(solution, lower bounds)``: the fit with the macro-slip onset beyond ``micro_slip_reach`` times the
+        largest amplitude when it fits as well (see the class notes), else the free one."""
+        reach = shape.reach(np.asarray(sol.x, float))
+        if self.micro_slip_reach is None or reach is None or reach[2] != "macro-slip":
+            return sol, lo
+        floor = self.micro_slip_reach * float(qmax.max())
+        if reach[1] >= floor:
+            return sol, lo
+        lo2 = list(lo)
+        lo2[0] = max(lo[0], math.log(floor))
+        if lo2[0] >= hi[0]:
+            return sol, lo
+        # starts at, and well beyond, the floor (the micro-slip shape hardly depends on phi_max there)
+        starts = []
+        for lp in (lo2[0] + 0.05, lo2[0] + math.log(3.0), lo2[0] + math.log(10.0)):
+            x0 = np.clip(np.asarray(sol.x, float), np.array(lo2) + 1e-9, np.array(hi) - 1e-9)
+            x0[0] = min(lp, hi[0] - 1e-6)
+            starts.append(x0)
+        alt = min((optimize.least_squares(proj, x0, max_nfev=self.max_evaluations, **{**opts, "bounds": (lo2, hi)})
+                   for x0 in starts), key=lambda r: r.cost)
+        n_res = proj(sol.x).size
+        scale = 2.0 * sol.cost / max(n_res - 3 - sol.x.size, 1)  # calibrated residual variance
+        dchi2 = 2.0 * (alt.cost - sol.cost) / max(scale, 1e-300)
+        if dchi2 < 4.0:
+            warn.append(f"{context}{reach[0]} = {reach[1]:.4g} (inside {self.micro_slip_reach:g} x the largest measured "
+                        f"amplitude) is not resolved: a law in micro-slip up to {floor:.4g} fits as well (chi-square "
+                        f"+{dchi2:.2g}) and is kept, the joint extrapolated in micro-slip")
+            return alt, lo2
+        return sol, lo
+
     def _sandwich(self, shape, p, U, P, E, recs, W, cubic=False):
         """Sandwich covariance of ``(k, c, scale, eta..., [k3])`` under the records' noise model."""
         beta, eta = p[:3], p[3: p.size - int(cubic)]
@@ -587,10 +649,10 @@ class HystereticForceStateMapping:
         JtJ = np.zeros((npar, npar))
         meat = np.zeros((npar, npar))
         for i, r in enumerate(recs):
-            m = 2 * r.H
+            m, n = 2 * r.H, r.rows
             J = np.column_stack([r.d[1:], r.v[1:], fc[i, :m]] + [beta[2] * d[i, :m] for d in dF]
                                 + ([c3[i, :m]] if cubic else []))
-            J = W[i] * (r.U @ J)
+            J = W[i] * (r.U @ J[:n])
             JtJ += J.T @ J
             # d(model coeffs)/d(acceleration coeffs), harmonics 1..H: k Ld + c Lv + scale * (P D E) Ld
             G = P[:m] @ D[i] @ E[:, : m + 1]  # d law coeffs / d displacement coeffs
@@ -600,7 +662,7 @@ class HystereticForceStateMapping:
             M[:, 1:] += np.eye(m)  # y = F - a: the acceleration enters with -1 as well
             S = r.s_force**2 * r.C[1:, 1:] + r.s_accel**2 * (M @ r.C @ M.T)
             Ue = W[i] * r.U
-            Sr = Ue @ S @ Ue.T
+            Sr = Ue @ S[:n, :n] @ Ue.T
             meat += J.T @ Sr @ J
         # columns scaled to unit norm before the pseudo-inverse: k3's column (q^3) is many decades
         # smaller than the others, and pinv's relative cut-off would otherwise drop it (a zero variance)
