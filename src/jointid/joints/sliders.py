@@ -32,7 +32,7 @@ def jenkins_harmonic_stiffness(s):
 
 #: Elements (samples x batch x sliders) evaluated at once by :func:`_slider_aft`: blocks of samples
 #: small enough to stay in the processor's cache (fresh large arrays cost more than the arithmetic).
-_BLOCK_ELEMENTS = 1 << 15
+_BLOCK_ELEMENTS = 1 << 16
 
 
 def _play_block(s, x, phi, end_only=False):
