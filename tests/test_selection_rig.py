@@ -13,14 +13,24 @@ from jointid.identify.selection import select_model
 from jointid.identify.terms import library
 
 
+def usable_records(pr):
+    """``(signals, force levels)`` of a preload's usable records."""
+    recs = [o for o in pr.result.records if o.usable and o.spec.preload == pr.preload]
+    return [o.signals for o in recs], [o.spec.force_level for o in recs]
+
+
+def sensor_scale(pr, sensor="accel_42"):
+    """``(|phi_force|, |phi_sensor|)`` of mode 1 in the preload's updated structure."""
+    s = pr.structure
+    return abs(float(s.phi_force[0])), abs(float(s.phi_sensors[list(s.sensors).index(sensor), 0]))
+
+
 def _held_out(pr, key, sigs, lev, cand, level):
     """The candidate fitted without one force level, solved at that level against the rig's exact FRF."""
     train = [i for i, x in enumerate(lev) if x != level]
     m = PreloadForceStateMapping(cand.terms, amplitude_laws=cand.laws).fit([sigs[i] for i in train]).result_
     model = single_mode_model(library(cand.terms), m.law_orders, m.parameters)
-    s = pr.structure
-    phi_f = abs(float(s.phi_force[0]))
-    phi_s = abs(float(s.phi_sensors[list(s.sensors).index("accel_42"), 0]))
+    phi_f, phi_s = sensor_scale(pr)
     exact = next(r.exact for r in pr.repredictions if r.force_level == level)
     r = repredict_group(pr.result, pr.result.group(key, level), forcing=phi_f * float(level), scale=phi_s * phi_f,
                         exact=exact, model=model)
@@ -38,8 +48,7 @@ def test_rig_cubic_flagged_and_selected_model_repredicts_held_out_level(demo_run
         print(f"preload {key:g} N: {adq.verdict}")
         assert not adq.adequate and k3.p_value < 1e-6 and k3.ratio > 2.0  # k3 falls ~3x (120 N), ~4x (540 N)
         assert "the cubic model does not hold at this preload" in adq.verdict
-        recs = [o for o in pr.result.records if o.usable and o.spec.preload == key]
-        sigs, lev = [o.signals for o in recs], [o.spec.force_level for o in recs]
+        sigs, lev = usable_records(pr)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             sel = select_model(sigs, lev, preload=key, fit_selected=False)
@@ -64,7 +73,9 @@ def test_rig_cubic_flagged_and_selected_model_repredicts_held_out_level(demo_run
             elif abs(a_sel) >= 1.0:  # the top level: amplitudes beyond the others' (the laws extrapolate)
                 misses.append(f"{key:g} N: {sel.selected} {a_sel:+.2f} % at {level:g} N")
     if misses:
-        # Known and open (issue 22): the held-out rule picks the order-2 amplitude-dependent stiffness at 120 N
-        # (best held-out score on the measured dwells), whose extrapolation to the top level misses the rig's
-        # exact peak amplitude by about 2.4 %; the micro-slip power laws picked by BIC before were within 1 %.
+        # Known and open (issue 22): the held-out rule picks the order-2 amplitude-dependent stiffness at 120 N,
+        # whose extrapolation to the top level misses the rig's exact peak amplitude by about 2.4 % (micro-slip
+        # power laws: +0.6 %).  Since the top level's peak is scored as a peak also for a model with a fold among
+        # its dwells, micro-slip has the best held-out score (0.027 against 0.038), but the order-2 laws are within
+        # noise of it (ratio 1.5) with as many parameters and none fitted as an exponent, and win the tie.
         pytest.xfail("top-level peak amplitude extrapolated beyond 1 %: " + "; ".join(misses))
