@@ -128,6 +128,8 @@ def test_predict_with_the_selected_hysteretic_law(law_name, tmp_path, capsys):
             lo, hi = pred[key + "_ci95"]
             assert lo < pred[key] < hi
         assert len(pred["curve"]["frequency_hz"]) == len(pred["curve"]["q_max"]) > 20
+        tc = pred["time_integration_check"]
+        assert tc["error"] is None and abs(tc["relative_difference"]) < 1e-3, tc
 
 
 def _hysteretic_results(folder, law, cov_scale=1e-4):
@@ -199,6 +201,9 @@ def test_handmade_hysteretic_results_predict_with_the_law(tmp_path):
     f_fh, q_fh = first_harmonic_peak(K, C, JENKINS, 14.0)  # the first harmonic only: close, not equal
     assert abs(pred.peak_frequency_hz / f_fh - 1) < 5e-3 and abs(pred.peak_q_max / q_fh - 1) < 0.05
     assert "jenkins joint law" in pred.report()
+    tc = d["time_integration_check"]  # the peak's steady state integrated in time (no harmonics, no AFT)
+    assert tc["error"] is None and abs(tc["relative_difference"]) < 1e-3
+    assert tc["q_max_harmonic_balance"] == pytest.approx(pred.peak_q_max, rel=1e-4)
 
 
 def test_bad_hysteretic_model_is_refused_naming_the_file(tmp_path, capsys):
@@ -214,3 +219,16 @@ def test_bad_hysteretic_model_is_refused_naming_the_file(tmp_path, capsys):
     code = main(["predict", str(file), "--force-levels", "14", "--out", str(tmp_path / "out"), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and "bouc-wen" in err and "Traceback" not in err
+
+
+def test_too_few_harmonics_are_caught_by_the_time_integration(tmp_path):
+    """One harmonic misses the slipping joint's higher harmonics: the time integration from the peak's steady
+    state settles 0.6 % away, and the prediction says to give more harmonics."""
+    from jointid.app.predict import predict_from_results
+
+    file = _hysteretic_results(tmp_path / "res", JENKINS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        (pred,) = predict_from_results(file, "14", n_harmonics=1, uncertainty=False).predictions
+    assert abs(pred.time_check["relative_difference"]) > 2e-3
+    assert any("give more (--harmonics)" in n for n in pred.notes)

@@ -605,7 +605,7 @@ def _predict_hysteretic_level(entry, model, force_level, scale, fitted_levels, f
     return Prediction(frequency_hz=out["frequency_hz"], q_max=out["q_max"], stable=out["stable"],
                       folds_hz=out["folds_hz"], peak_frequency_hz=pf, peak_q_max=pq,
                       peak_frequency_hz_stderr=out["stderr"][0], peak_q_max_stderr=out["stderr"][1],
-                      amplitude_beyond_fitted=beyond, frequency_range_hz=out["span"],
+                      amplitude_beyond_fitted=beyond, frequency_range_hz=out["span"], time_check=out["time_check"],
                       notes=tuple(notes + out["notes"]), **base)
 
 

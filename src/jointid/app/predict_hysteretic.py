@@ -19,7 +19,8 @@ law's ``aft`` with its exact Jacobian; the curve is continued through the folds.
 located between the points as for the polynomial models
 (:func:`jointid.app.predict.predict_peak`).  Stability is read from the folds: on a
 single-mode forced response the branch between two folds is the unstable one (saddle-node
-turning points), the rest stable (Hill's method with slider laws is not yet checked).
+turning points), the rest stable (Hill's method with slider laws is not yet checked).  The steady
+state at the peak is checked by a time integration (:func:`time_check`).
 
 Standard errors of the peak: the law's parameter covariance (``hysteretic_model.covariance``
 over the independent parameters ``k, c, kt, Fs`` or ``k, c, K_T, F_S, chi, beta``)
@@ -392,24 +393,78 @@ def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined):
     return float(math.sqrt(max(V[0, 0], 0.0))), float(math.sqrt(max(V[1, 1], 0.0))), None
 
 
+#: Relative difference of ``q_max`` between the harmonic balance and the time integration at the peak above
+#: which the prediction warns (as for the polynomial models).
+TIME_CHECK_RTOL = 1e-3
+
+
+def time_check(model: HystereticModel, Q, point, steps=128, periods=40) -> dict:
+    """The steady state ``point`` of the harmonic balance integrated in time: its ``q_max`` against the one of
+    the last of ``periods`` periods of a Runge-Kutta integration (``steps`` a period) of
+    ``q'' + c q' + k q + f_joint(q) = Q sin(omega t)`` started from the point's ``q(0)``, ``q'(0)`` and the
+    slider state its motion leaves (the law's ``force`` over two sampled periods from the virgin state); the
+    slider state is held over each step and updated at its end (the play operator, exact at the step ends).
+    Independent of the harmonic balance: no truncation to harmonics, no AFT."""
+    from ..signal.harmonics import HarmonicSeries, series_max_abs
+
+    law, k, c = model.law(), model.get("k"), model.get("c")
+    w = float(point.omega)
+    qs = HarmonicSeries(w, np.asarray(point.joint[0], float))
+    vs = qs.derivative()
+    dt = 2 * np.pi / w / steps
+    out = {"frequency_hz": w / (2 * np.pi), "q_max_harmonic_balance": float(series_max_abs(point.joint[0]))}
+    state = law.initial_state()
+    for u in np.tile(qs(dt * np.arange(steps)), 2):
+        _, state = law.force(u, 0.0, state)
+    q, v = float(qs(0.0)), float(vs(0.0))
+
+    def acc(t, qq, vv):
+        return Q * math.sin(w * t) - c * vv - k * qq - float(law.force(qq, vv, state)[0])
+
+    last = np.empty(steps)
+    with np.errstate(all="raise"):
+        try:
+            for n in range(periods * steps):
+                t = n * dt
+                a1 = acc(t, q, v)
+                a2 = acc(t + 0.5 * dt, q + 0.5 * dt * v, v + 0.5 * dt * a1)
+                a3 = acc(t + 0.5 * dt, q + 0.5 * dt * (v + 0.5 * dt * a1), v + 0.5 * dt * a2)
+                a4 = acc(t + dt, q + dt * (v + 0.5 * dt * a2), v + dt * a3)
+                q, v = (q + dt * v + dt * dt / 6 * (a1 + a2 + a3),
+                        v + dt / 6 * (a1 + 2 * a2 + 2 * a3 + a4))
+                _, state = law.force(q, v, state)
+                if n >= (periods - 1) * steps:
+                    last[n - (periods - 1) * steps] = q
+        except FloatingPointError as exc:
+            return {**out, "q_max_time_integration": None, "relative_difference": None, "error": str(exc)}
+    H = steps // 2 - 1
+    X = np.fft.rfft(last)[: H + 1] * (2.0 / steps)  # the last period (starting at a whole period)
+    coef = np.empty(2 * H + 1)
+    coef[0], coef[1::2], coef[2::2] = X[0].real / 2, X[1:].real, -X[1:].imag
+    qt = float(series_max_abs(coef))
+    return {**out, "q_max_time_integration": qt, "relative_difference": qt / out["q_max_harmonic_balance"] - 1.0,
+            "error": None, "steps_per_period": int(steps), "periods": int(periods)}
+
+
 def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, widen=True, uncertainty=True) -> dict:
     """The selected law's response at modal force ``Q``: the continued curve over ``span_hz`` (widened to the
     peak when ``widen``), its peak re-solved at the fine time samples, and its standard errors.
 
     Returns a dict: ``frequency_hz``, ``q_max``, ``stable`` (arrays along the curve), ``folds_hz``,
     ``peak`` (``(frequency_hz, q_max)`` or ``None``), ``stderr`` (two floats, ``nan`` when not
-    available), ``span`` (the band used) and ``notes``.
+    available), ``span`` (the band used), ``time_check`` (:func:`time_check` of the peak's point) and
+    ``notes``.
     """
     from .predict_peaks import predict_peak
 
     _, curve = _continue(model, Q, n_harmonics)
     r, peak, span = predict_peak(None, Q, span_hz, n_harmonics, widen=widen, curve=curve, f1_hz=model.f1_hz)
     f_hz = r.omega / (2 * np.pi)
-    notes = [("stability from the folds (the branch between two folds unstable); no time-integration check of "
-              "the hysteretic law's steady state")]
+    notes = ["stability from the folds (the branch between two folds unstable)"]
     out = {"frequency_hz": f_hz, "q_max": np.asarray(r.q_max, float), "stable": r.stable,
            "folds_hz": tuple(float(f_hz[i]) for i in r.folds), "peak": None,
-           "stderr": (float("nan"), float("nan")), "span": tuple(float(v) for v in span), "notes": notes}
+           "stderr": (float("nan"), float("nan")), "span": tuple(float(v) for v in span), "notes": notes,
+           "time_check": None}
     if peak is None:
         notes.append(f"no peak in {span[0]:.6g}-{span[1]:.6g} Hz: the response still grows at the edge of the band")
         return out
@@ -420,6 +475,13 @@ def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, wi
         notes.append(f"the peak's points could not be solved again at {_time_samples(n_harmonics, True)} time "
                      f"samples: the peak is the curve's at {_time_samples(n_harmonics)} (about 0.05 % off)")
     out["peak"] = tuple(float(x) for x in (peak if fine is None else fine)[:2])
+    check = time_check(model, Q, refined[3] if fine is not None else r.points[peak[2]])
+    out["time_check"] = check
+    if check["error"]:
+        notes.append(f"time integration from the peak's steady state failed ({check['error']})")
+    elif abs(check["relative_difference"]) > TIME_CHECK_RTOL:
+        notes.append(f"at the peak, time integration gives q_max {100 * check['relative_difference']:+.2g} % from "
+                     f"the harmonic balance with {n_harmonics} harmonics: give more (--harmonics)")
     if uncertainty:
         try:
             sf, sq, why = _peak_stderr(model, Q, n_harmonics, r, peak, span, refined if fine else None)
