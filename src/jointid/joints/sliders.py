@@ -112,20 +112,25 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
             x = _play_block(ext[:, t0:t1], x, phi, end_only=True)
             continue
         X = _play_block(ext[:, t0:t1], x, phi)
+        a = max(t0, n)  # the block's first sample of the second sweep
         if jacobian:
-            L = np.empty(X.shape, dtype=np.intp)
-            L[0] = np.where(X[0] != x, t0, last)
-            L[1:] = np.where(X[1:] != X[:-1], np.arange(t0 + 1, t1)[:, None, None], -1)
-            np.maximum.accumulate(L, axis=0, out=L)
-            last = L[-1].copy()
-        a = max(t0, n)
+            C = np.empty(X.shape, dtype=bool)  # the element moved at this step
+            np.not_equal(X[0], x, out=C[0])
+            np.not_equal(X[1:], X[:-1], out=C[1:])
+            e1 = min(a, t1)  # first sweep up to here: only each element's latest step of slip counts
+            if e1 > t0:
+                C1 = C[: e1 - t0]
+                last = np.where(C1.any(axis=0), e1 - 1 - np.argmax(C1[::-1], axis=0), last)
         if a < t1:
             X2 = X[a - t0 :]
             fT[a - n : t1 - n] = ktot * ext[:, a:t1].T - np.matmul(X2.reshape((t1 - a,) + stack), k).reshape(t1 - a, nb)
             if jacobian:
-                dest = lasts[a - n : t1 - n]
-                dest[...] = L[a - t0 :]
-                dest[dest >= n] -= n  # the sample within the period
+                dest = lasts[a - n : t1 - n]  # step of the latest slip at each sample, then its sample
+                dest[...] = np.where(C[a - t0 :], np.arange(a, t1)[:, None, None], -1)
+                np.maximum(dest[0], last, out=dest[0])
+                np.maximum.accumulate(dest, axis=0, out=dest)
+                last = dest[-1].copy()
+                np.subtract(dest, n, out=dest, where=dest >= n)
         x = X[-1].copy()
     f = fT.T.reshape(u.shape)
     if not jacobian:
