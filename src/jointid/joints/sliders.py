@@ -30,8 +30,8 @@ def jenkins_harmonic_stiffness(s):
     return (t - 0.5 * np.sin(2.0 * t)) / np.pi
 
 
-#: Elements (samples x batch x sliders) evaluated at once by :func:`_slider_aft`: blocks of samples
-#: small enough to stay in the processor's cache (fresh large arrays cost more than the arithmetic).
+#: Elements (samples x batch x sliders) evaluated at once by :func:`_slider_aft`: longer motions and
+#: larger batches go in blocks of samples (bounded memory; past ~1e5 elements larger blocks got slower).
 _BLOCK_ELEMENTS = 1 << 16
 
 
