@@ -64,6 +64,8 @@ def test_hysteretic_law_from_two_levels_predicts_the_top_level(demo_run):
             fit = HystereticForceStateMapping("iwan4+cubic", fit_harmonics=1, micro_slip_reach=3.0).fit(
                 [sigs[i] for i in train]).result_
         print(fit.report())
+        print(f"  the rig's joint: chi {pr.rig.joint_laws['rotation'].iwan.chi:g}, modal k3 "
+              f"{pr.rig.modal_cubic_coefficient:.4g}")
         assert any("extrapolated in micro-slip" in str(w.message) for w in caught) or fit.get("phi_max") > 3 * max(
             sigs[i].q_max() for i in train)
         with warnings.catch_warnings():
