@@ -215,6 +215,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the standard errors of the peaks (two more solutions per model parameter)")
     p.add_argument("--quiet", action="store_true", help="no progress and no table on stdout")
 
+    p = sub.add_parser("update", help="fit a structure model's joint law to measured first harmonics "
+                       "(docs/formats.md)", epilog="example: jointid update lap_joint.toml measured.csv --out upd")
+    p.add_argument("model", type=Path, help="structure model file MODEL.toml")
+    p.add_argument("measured", type=Path, help="measured first harmonics, CSV (force_level, frequency_hz, dof, a1, "
+                   "b1, se)")
+    p.add_argument("--out", type=Path, required=True, help="output folder (results.json, report.txt, figures/)")
+    p.add_argument("--joint", default=None, help="name of the joint element to update (default: the first)")
+    p.add_argument("--parameters", default=None, metavar="P1,P2,...",
+                   help="law parameters to fit (default: all of the law's parameters)")
+    p.add_argument("--harmonics", type=_int_in(1, 50), default=9, help="harmonics of the harmonic balance "
+                   "(default: %(default)s; 5 biased a Jenkins fit by 1.4 se)")
+    p.add_argument("--no-heldout", action="store_true", help="skip the leave-one-level-out check")
+    p.add_argument("--quiet", action="store_true", help="no report on stdout")
+
     p = sub.add_parser("study", help="Monte Carlo study: simulated campaigns identified and compared with the truth",
                        epilog="example: jointid study plan.toml --out study --jobs 2  (plan format: jointid.app.study)")
     p.add_argument("plan", type=Path, help="study plan (TOML: a simulation configuration with [study], [vary], [grid])")
@@ -472,8 +486,23 @@ def _predict_structure(args) -> int:
     return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
+def _update(args) -> int:
+    from .app.update_joint import read_measured_frf, update_joint, write_update
+
+    meas = read_measured_frf(args.measured)  # a bad file: one line, before any work
+    pars = None if args.parameters is None else [s.strip() for s in args.parameters.split(",") if s.strip()]
+    res = update_joint(args.model, meas, joint=args.joint, parameters=pars, n_harmonics=args.harmonics,
+                       heldout=not args.no_heldout)
+    write_update(res, args.out, inputs=(args.model.parent, args.measured.parent))
+    if not args.quiet:
+        print(res.report())
+        print(f"\nresults written to {args.out}")
+    return EXIT_OK
+
+
 COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal,
-            "study": _study, "backbone": _backbone, "predict": _predict}
+            "study": _study, "backbone": _backbone, "predict": _predict,
+            "update": _update}
 
 
 def main(argv=None) -> int:

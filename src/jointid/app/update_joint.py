@@ -1,0 +1,391 @@
+"""Updating a joint law in a structure model to measured first harmonics (``jointid update``).
+
+The structure model (``MODEL.toml``, docs/formats.md "Structure model") carries a joint
+element whose law parameters are the starting values.  The measurements are first-harmonic
+FRF points: per force level, the first harmonic of the displacement at a named DOF at each
+dwell frequency (``MEASURED.csv``, docs/formats.md "Measured first harmonics for updating").
+
+The fitted parameters ``theta`` (log of each positive parameter, the others as they are)
+minimise by :func:`scipy.optimize.least_squares`
+
+``sum_i |X_model(f_i, F_i; theta) - X_i|^2 / se_i^2``
+
+over the real and imaginary parts of every point, where ``X_model`` is the first harmonic of
+the multi-harmonic balance of :mod:`jointid.simulate.structure_hb` at the measured frequency
+and force (the dwells of a level solved in file order, each started from its predecessor:
+the branch a stepped sweep follows).  The covariance is ``(J^T J)^-1`` of the weighted
+residual Jacobian, multiplied by ``chi^2 / dof`` when that exceeds one (said in the result);
+standard errors by the delta method, 95 % intervals ``theta +- 1.96 se`` mapped back (so
+asymmetric for log parameters).
+
+Leave-one-level-out: with at least two levels, each level in turn is left out, the law
+refitted on the others, and the left-out level's frequency response predicted by
+continuation over its measured band; its peak (located between the continued points) is
+compared on the same branch: the model solved at the left-out dwells in their order, the
+peak located by one estimator (quadratic through the largest dwell and its neighbours, only
+where that dwell is inside the band) on the predicted and on the measured dwells, errors in
+%, and the rms amplitude error over the dwells.  The model's own peak between continued
+points is reported beside (``model_peak_*``): a quadratic through dwells is coarser than
+the prediction and would blame it for the dwell spacing.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.optimize
+
+from ..errors import ConvergenceError, IdentificationError, ManifestError, RecordFileNotFoundError
+from ..io.structure_model import read_structure_model
+from ..simulate.structure import JointElement, StructureModel, structure_from_spec
+from ..simulate.structure_hb import to_complex
+from .structure_predict import located_peak
+
+__all__ = ["MeasuredFRF", "JointUpdate", "read_measured_frf", "update_joint", "write_update"]
+
+_COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
+Z95 = 1.959963984540054
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredFRF:
+    """First harmonics ``x = a1 cos + b1 sin`` at ``dof``; ``se`` the standard error of a1 and of b1."""
+
+    path: str
+    force_level: np.ndarray
+    frequency_hz: np.ndarray
+    dof: tuple
+    X: np.ndarray  # complex a1 - i b1
+    se: np.ndarray
+
+    def levels(self):
+        return sorted(set(self.force_level.tolist()))
+
+    def subset(self, mask):
+        m = np.asarray(mask, bool)
+        return MeasuredFRF(self.path, self.force_level[m], self.frequency_hz[m],
+                           tuple(d for d, k in zip(self.dof, m) if k), self.X[m], self.se[m])
+
+
+def read_measured_frf(path) -> MeasuredFRF:
+    """Read a MEASURED.csv; bad input -> :class:`ManifestError` naming the file, row and column."""
+    p = Path(path)
+    if not p.is_file():
+        raise RecordFileNotFoundError(f"{p}: measured first-harmonic file not found")
+    try:
+        with open(p, newline="", encoding="utf-8") as fh:
+            kept = [(n, line) for n, line in enumerate(fh, start=1)
+                    if line.strip() and not line.lstrip().startswith("#")]
+        rows = list(csv.DictReader(line for _, line in kept))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ManifestError(f"{p}: cannot read as CSV ({exc})") from None
+    if not rows:
+        raise ManifestError(f"{p}: no data rows")
+    missing = [c for c in _COLUMNS if c not in rows[0]]
+    if missing:
+        raise ManifestError(f"{p}: missing column(s) {', '.join(missing)} (needs {', '.join(_COLUMNS)})")
+    vals = {c: [] for c in _COLUMNS if c != "dof"}
+    dofs = []
+    for (i, _), r in zip(kept[1:], rows):  # i: the line of the file
+        for c in vals:
+            try:
+                v = float(r[c])
+            except (TypeError, ValueError):
+                raise ManifestError(f"{p}: line {i}, column {c}: not a number ({r[c]!r})") from None
+            if not math.isfinite(v):
+                raise ManifestError(f"{p}: line {i}, column {c}: not finite")
+            if c in ("force_level", "frequency_hz", "se") and v <= 0:
+                raise ManifestError(f"{p}: line {i}, column {c}: must be > 0, got {v:g}")
+            vals[c].append(v)
+        d = (r["dof"] or "").strip()
+        if not d:
+            raise ManifestError(f"{p}: line {i}, column dof: empty")
+        dofs.append(d)
+    a1, b1 = np.array(vals["a1"]), np.array(vals["b1"])
+    return MeasuredFRF(str(p), np.array(vals["force_level"]), np.array(vals["frequency_hz"]), tuple(dofs),
+                       a1 - 1j * b1, np.array(vals["se"]))
+
+
+def _with_law(model: StructureModel, j: int, law) -> StructureModel:
+    joints = list(model.joints)
+    old = joints[j]
+    joints[j] = JointElement(old.name, old.dof_a, old.dof_b, law, old.k_model)
+    return StructureModel(model.modal, joints, model.force)
+
+
+class _Fitter:
+    def __init__(self, model, joint, names, n_harmonics, n_time):
+        self.model, self.j, self.names = model, joint, list(names)
+        self.H, self.N = int(n_harmonics), n_time
+        law = model.joints[joint].law
+        p0 = law.parameters
+        self.log = [p0[k] > 0 for k in self.names]
+        self.theta0 = np.array([math.log(p0[k]) if lg else p0[k] for k, lg in zip(self.names, self.log)])
+
+    def law(self, theta):
+        vals = {k: (math.exp(t) if lg else float(t)) for k, t, lg in zip(self.names, theta, self.log)}
+        return self.model.joints[self.j].law.replace(**vals)
+
+    def responses(self, theta, meas: MeasuredFRF):
+        """Model first harmonics at the measured points (each level in file order, continued)."""
+        m = _with_law(self.model, self.j, self.law(theta))
+        out = np.empty(meas.X.size, complex)
+        for lv in meas.levels():
+            idx = np.flatnonzero(meas.force_level == lv)
+            prev = []
+            for i in idx:
+                w = 2 * np.pi * meas.frequency_hz[i]
+                guess = None
+                if len(prev) >= 2:
+                    (w0, u0), (w1, u1) = prev[-2], prev[-1]
+                    guess = u1 + (w - w1) / (w1 - w0) * (u1 - u0) if w1 != w0 else u1
+                elif prev:
+                    guess = prev[-1][1]
+                pt = m.solve(meas.frequency_hz[i], lv, self.H, n_time=self.N, guess=guess)
+                prev.append((w, pt.joint))
+                out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pt.modal)[1]
+        return out
+
+    def residual(self, theta, meas):
+        try:
+            d = (self.responses(theta, meas) - meas.X) / meas.se
+        except ConvergenceError:
+            return np.full(2 * meas.X.size, 1e6)
+        return np.concatenate([d.real, d.imag])
+
+    def fit(self, meas, theta0=None):
+        th0 = self.theta0 if theta0 is None else theta0
+        sol = scipy.optimize.least_squares(self.residual, th0, args=(meas,), method="lm", diff_step=1e-5,
+                                           x_scale="jac", xtol=1e-10, ftol=1e-10, max_nfev=200)
+        return sol
+
+
+@dataclass
+class JointUpdate:
+    model_path: str
+    measured_path: str
+    joint: str
+    law: str
+    names: list
+    units: dict
+    start: dict
+    estimate: dict
+    stderr: dict
+    ci95: dict
+    log_parametrised: dict
+    chi2: float
+    dof: int
+    covariance_scaled: bool
+    correlation: list
+    n_points: int
+    n_harmonics: int
+    nfev: int
+    heldout: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    fitted: dict = field(default_factory=dict)  # measured vs model first harmonics (for the figure)
+
+    @property
+    def chi2_per_dof(self) -> float:
+        return self.chi2 / self.dof if self.dof > 0 else float("nan")
+
+    def summary(self) -> dict:
+        return {
+            "kind": "joint_update", "model": self.model_path, "measured": self.measured_path,
+            "joint": self.joint, "law": self.law, "units": self.units,
+            "parameters": self.estimate, "start": self.start, "stderr": self.stderr, "ci95": self.ci95,
+            "log_parametrised": self.log_parametrised, "correlation": self.correlation,
+            "chi2": self.chi2, "dof": self.dof, "chi2_per_dof": self.chi2_per_dof,
+            "covariance_scaled_by_chi2_per_dof": self.covariance_scaled,
+            "n_points": self.n_points, "n_harmonics": self.n_harmonics, "function_evaluations": self.nfev,
+            "heldout": self.heldout, "warnings": self.warnings,
+        }
+
+    def report(self) -> str:
+        L = [f"joint update: {self.joint} ({self.law}) in {self.model_path}",
+             f"measured: {self.measured_path}, {self.n_points} first-harmonic points, harmonic balance H = "
+             f"{self.n_harmonics}",
+             f"chi2/dof = {self.chi2:.4g} / {self.dof} = {self.chi2_per_dof:.3f}"
+             + (" (covariance scaled by it)" if self.covariance_scaled else " (covariance not scaled: <= 1)"),
+             "", f"{'parameter':<10} {'start':>12} {'estimate':>12} {'stderr':>11} {'95 % interval':>27}  unit"]
+        for k in self.names:
+            lo, hi = self.ci95[k]
+            L.append(f"{k:<10} {self.start[k]:>12.6g} {self.estimate[k]:>12.6g} {self.stderr[k]:>11.3g} "
+                     f"[{lo:>12.6g}, {hi:>12.6g}]  {self.units.get(k, '')}")
+        if self.heldout:
+            L += ["", "leave-one-level-out (fitted without the level, its response predicted):",
+                  f"{'level':>8} {'peak f err %':>13} {'peak A err %':>13} {'rms A err %':>12}  note"]
+            for h in self.heldout:
+                def fmt(x):
+                    return f"{x:+.4f}" if x is not None else "-"
+                L.append(f"{h['force_level']:>8g} {fmt(h['peak_frequency_error_pct']):>13} "
+                         f"{fmt(h['peak_amplitude_error_pct']):>13} {fmt(h['rms_amplitude_error_pct']):>12}  "
+                         f"{h['note']}")
+        for w in self.warnings:
+            L.append(f"WARNING: {w}")
+        return "\n".join(L)
+
+
+def _measured_peak(f, a):
+    """Peak of the dwells where they resolve it (largest dwell not at an end), else None."""
+    o = np.argsort(f)
+    f, a = f[o], a[o]
+    i = int(np.argmax(a))
+    if i == 0 or i == a.size - 1:
+        return None
+    c = np.polyfit(f[i - 1:i + 2] - f[i], a[i - 1:i + 2], 2)
+    if c[0] >= 0:
+        return float(f[i]), float(a[i])
+    df = float(np.clip(-c[1] / (2 * c[0]), f[i - 1] - f[i], f[i + 1] - f[i]))
+    return float(f[i] + df), float(np.polyval(c, df))
+
+
+def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time):
+    keep = meas.force_level != level
+    sol = fitter.fit(meas.subset(keep), theta0=theta_all)
+    out = meas.subset(~keep)
+    dof = out.dof[0]
+    row = {"force_level": level, "dof": dof, "parameters": {k: float(v) for k, v in
+                                                             fitter.law(sol.x).parameters.items()},
+           "peak_frequency_error_pct": None, "peak_amplitude_error_pct": None, "rms_amplitude_error_pct": None,
+           "note": ""}
+    try:
+        pred = fitter.responses(sol.x, out)
+    except ConvergenceError as exc:
+        row["note"] = f"dwell prediction failed: {exc}"
+        return row
+    row["rms_amplitude_error_pct"] = float(100 * np.sqrt(np.mean((np.abs(pred) / np.abs(out.X) - 1) ** 2)))
+    mp = _measured_peak(out.frequency_hz, np.abs(out.X))
+    pp = _measured_peak(out.frequency_hz, np.abs(pred))
+    if mp is None or pp is None:
+        row["note"] = "peak not resolved by the dwells (largest dwell at an end of the band)"
+        return row
+    # like with like: the same estimator on the predicted and the measured dwells (same branch)
+    row.update(measured_peak_frequency_hz=mp[0], measured_peak_amplitude=mp[1],
+               predicted_peak_frequency_hz=pp[0], predicted_peak_amplitude=pp[1],
+               peak_frequency_error_pct=100 * (pp[0] / mp[0] - 1), peak_amplitude_error_pct=100 * (pp[1] / mp[1] - 1))
+    # the model's own peak between continued points (not limited by the dwell spacing)
+    m = _with_law(fitter.model, fitter.j, fitter.law(sol.x))
+    try:
+        curve = m.frequency_response(float(out.frequency_hz.min()), float(out.frequency_hz.max()), level,
+                                     n_harmonics, n_time=n_time)
+        amp = np.array([abs(to_complex(m.modal.shape(dof) @ p.modal)[1]) for p in curve.points])
+        cf, ca = located_peak(curve.frequency_hz, amp)
+        row.update(model_peak_frequency_hz=cf, model_peak_amplitude=ca)
+    except ConvergenceError as exc:
+        row["note"] = f"continuation of the predicted curve failed: {exc}"
+    return row
+
+
+def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmonics=9, n_time=None,
+                 heldout=True) -> JointUpdate:
+    """Fit a joint law's parameters of ``model_path`` to measured first harmonics (see the module doc)."""
+    spec = read_structure_model(model_path)
+    model, _ = structure_from_spec(spec)
+    meas = measured if isinstance(measured, MeasuredFRF) else read_measured_frf(measured)
+    names_j = [j.name for j in model.joints]
+    if joint is None:
+        j = 0
+    elif joint in names_j:
+        j = names_j.index(joint)
+    else:
+        raise ManifestError(f"{spec.path}: no joint named {joint!r} (joints: {', '.join(names_j)})")
+    for d in sorted(set(meas.dof)):
+        if d not in model.modal.dof_names:
+            raise ManifestError(f"{meas.path}: dof {d!r} is not a DOF of the structure model {spec.path}")
+    law = model.joints[j].law
+    avail = list(law.parameters)
+    names = avail if parameters is None else list(parameters)
+    bad = [k for k in names if k not in avail]
+    if bad or not names:
+        raise ManifestError(f"{spec.path}: joint {names_j[j]!r} ({law.name}) has no parameter(s) "
+                            f"{', '.join(bad) or '(none given)'}; its parameters: {', '.join(avail)}")
+    n_par = len(names)
+    dof = 2 * meas.X.size - n_par
+    if dof < 1:
+        raise IdentificationError(f"{meas.path}: {meas.X.size} points cannot determine {n_par} parameters")
+    fitter = _Fitter(model, j, names, n_harmonics, n_time)
+    try:
+        r0 = fitter.residual(fitter.theta0, meas)
+    except Exception as exc:  # noqa: BLE001 - a law rejecting its own start is a bad model file
+        raise ManifestError(f"{spec.path}: cannot evaluate the model at its starting parameters ({exc})") from None
+    if np.all(r0 == 1e6):
+        raise IdentificationError(f"{meas.path}: the harmonic balance does not converge at the starting parameters")
+    sol = fitter.fit(meas)
+    warn = []
+    if not sol.success:
+        warn.append(f"least squares stopped: {sol.message}")
+    chi2 = float(np.sum(sol.fun ** 2))
+    if np.any(sol.fun == 1e6):
+        raise IdentificationError(f"{meas.path}: the harmonic balance failed at the fitted parameters")
+    J = sol.jac
+    try:
+        cov = np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        cov = np.full((n_par, n_par), np.nan)
+        warn.append("the Jacobian is singular: some parameters are not determined by these data")
+    scaled = chi2 / dof > 1
+    if scaled:
+        cov = cov * (chi2 / dof)
+    se_t = np.sqrt(np.clip(np.diag(cov), 0, None))
+    est, se, ci = {}, {}, {}
+    for k, t, s, lg in zip(names, sol.x, se_t, fitter.log):
+        v = math.exp(t) if lg else float(t)
+        est[k] = v
+        se[k] = v * float(s) if lg else float(s)
+        ci[k] = [math.exp(t - Z95 * s), math.exp(t + Z95 * s)] if lg else [t - Z95 * s, t + Z95 * s]
+        if np.isfinite(s) and s > (1.0 if lg else max(abs(t), 1e-12)):
+            warn.append(f"{k} is poorly determined (relative standard error > 100 %)")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = np.sqrt(np.diag(cov))
+        corr = (cov / np.outer(d, d)).tolist()
+    if chi2 / dof > 4:
+        warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
+    res = JointUpdate(str(spec.path), meas.path, names_j[j], law.name, names, {k: law.units.get(k, "") for k in names},
+                      {k: law.parameters[k] for k in names}, est, se, ci, dict(zip(names, fitter.log)),
+                      chi2, dof, bool(scaled), corr, int(meas.X.size), int(n_harmonics), int(sol.nfev), warnings=warn)
+    res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas)}
+    if heldout and len(meas.levels()) >= 2:
+        for lv in meas.levels():
+            res.heldout.append(_heldout(fitter, meas, lv, sol.x, n_harmonics, n_time))
+    return res
+
+
+def write_update(result: JointUpdate, out, inputs=()) -> dict:
+    """``results.json``, ``report.txt`` and ``figures/update_fit.png`` in ``out`` as one output set."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..io.outputset import new_run_id, output_set
+    from ..io.results import atomic_write, write_json
+    from ..report.html import figure_to_png
+
+    run_id = new_run_id()
+    summary = result.summary()
+    summary["run_id"] = run_id
+    with output_set(Path(out), run_id, kind="update", inputs=inputs) as tmp:
+        paths = {"results": write_json(tmp / "results.json", summary),
+                 "report": atomic_write(tmp / "report.txt", result.report() + f"\n\nrun id {run_id}\n")}
+        meas, mod = result.fitted.get("measured"), result.fitted.get("model")
+        if meas is not None:
+            fig, ax = plt.subplots(figsize=(7, 3.6))
+            for lv in meas.levels():
+                i = np.flatnonzero(meas.force_level == lv)
+                o = i[np.argsort(meas.frequency_hz[i])]
+                line, = ax.plot(meas.frequency_hz[o], np.abs(mod[o]), "-", lw=1.1, label=f"F = {lv:g}, fitted")
+                ax.errorbar(meas.frequency_hz[o], np.abs(meas.X[o]), yerr=meas.se[o], fmt="o", ms=3,
+                            color=line.get_color())
+            ax.set_xlabel("frequency [Hz]")
+            ax.set_ylabel("first-harmonic amplitude")
+            ax.set_title(f"{result.joint}: updated {result.law} (dots: measured)")
+            ax.legend(fontsize=8)
+            ax.grid(alpha=0.3)
+            fig.tight_layout()
+            paths["figure"] = atomic_write(tmp / "figures" / "update_fit.png", figure_to_png(fig, dpi=110))
+            plt.close(fig)
+    return paths
