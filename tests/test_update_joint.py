@@ -178,3 +178,35 @@ def test_monte_carlo_z_scores_and_heldout(setup):
     assert abs(top["peak_amplitude_error_pct"]) < 2.0
     assert top["rms_amplitude_error_pct"] < 1.5
     assert math.isfinite(top["model_peak_frequency_hz"])
+
+
+REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def _lap_model(folder):
+    """The lap_joint.toml of docs/formats.md, written into ``folder`` with examples/ linked."""
+    text = (REPO / "docs" / "formats.md").read_text(encoding="utf-8")
+    i = text.index("# file: lap_joint.toml")
+    (folder / "lap_joint.toml").write_text(text[i:text.index("```", i)], encoding="utf-8")
+    (folder / "examples").symlink_to(REPO / "examples", target_is_directory=True)
+    return folder / "lap_joint.toml"
+
+
+def test_shipped_lap_example_reads(tmp_path):
+    meas = read_measured_frf(REPO / "examples" / "lap_joint_measured.csv")
+    assert meas.X.size == 27 and set(meas.dof) == {"B.w10"} and meas.levels() == [0.5, 2.0, 5.0]
+    m, _ = structure_from_spec(read_structure_model(_lap_model(tmp_path)))
+    assert "B.w10" in m.modal.dof_names and set(m.joints[0].law.parameters) == {"F_S", "K_T", "chi", "beta"}
+
+
+@pytest.mark.slow
+def test_shipped_lap_example_is_what_its_generator_writes(tmp_path):
+    import sys
+
+    sys.path.insert(0, str(REPO / "tests"))
+    import lap_joint_measured
+
+    out = lap_joint_measured.write_measured(_lap_model(tmp_path), tmp_path / "m.csv")
+    new, shipped = read_measured_frf(out), read_measured_frf(REPO / "examples" / "lap_joint_measured.csv")
+    np.testing.assert_array_equal(new.frequency_hz, shipped.frequency_hz)
+    np.testing.assert_allclose(new.X, shipped.X, rtol=1e-5)

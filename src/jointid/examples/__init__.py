@@ -20,7 +20,7 @@ __all__ = ["example_files", "copy_examples", "DEFAULT_FOLDER"]
 #: Where :func:`copy_examples` puts the files by default (the documents' ``examples/NAME``).
 DEFAULT_FOLDER = "examples"
 #: Kinds of example file: name suffix -> what it is read by.
-SUFFIXES = (".toml", ".npz")
+SUFFIXES = (".toml", ".npz", ".csv")
 #: What a binary example file holds (a text file says it in its leading comment).
 DATA_FILES = {"lap_joint.npz": "Mass and stiffness matrices (M, K, dof_names) of the free-free two-beam lap joint, "
                                "the structure model of docs/formats.md (jointid predict MODEL.toml)."}
