@@ -67,6 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import StructureError
+from ..joints import DiscreteIwan, discretize_iwan4
 
 __all__ = ["IwanParameters", "JenkinsElements", "JointLaw", "discretize_iwan"]
 
@@ -219,7 +220,11 @@ class JenkinsElements:
 
     Element ``i`` carries ``k_i (u - x_i)`` with ``|u - x_i| <= phi_i``; ``x_i`` (the slider
     position) is the state.  Rate-independent: the velocity argument of :meth:`force`
-    is accepted for the common protocol and ignored.
+    is accepted for the common protocol and ignored.  The time step and the periodic force
+    with its Jacobian are those of the ground law :class:`jointid.joints.DiscreteIwan`
+    (:attr:`sliders`, slip forces ``k_i phi_i``); this class adds the rig's conventions: the
+    elements that never slip over a period sit at the centre of its range, and the slider
+    positions at the first sample of the periodic orbit (:meth:`orbit_state`).
 
     Parameters
     ----------
@@ -227,10 +232,13 @@ class JenkinsElements:
         Element stiffnesses ``k_i`` (> 0).
     slip : array, shape (n,)
         Slip displacements ``phi_i`` (> 0); the slip force of element ``i`` is ``k_i phi_i``.
+        Stored as the ground law's ``slip_force / stiffness`` (equal to the given values to
+        the last bit or within one rounding).
     """
 
     stiffness: np.ndarray
     slip: np.ndarray
+    sliders: DiscreteIwan = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self):
         k = np.array(self.stiffness, dtype=float).ravel()
@@ -239,19 +247,31 @@ class JenkinsElements:
             raise StructureError(f"Jenkins elements: stiffness {k.shape} and slip {p.shape} must be equal, non-empty")
         if not (np.all(np.isfinite(k)) and np.all(k > 0) and np.all(np.isfinite(p)) and np.all(p > 0)):
             raise StructureError("Jenkins elements: stiffnesses and slip displacements must be positive and finite")
-        for name, a in (("stiffness", k), ("slip", p)):
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
-        object.__setattr__(self, "_k_total", float(k.sum()))
+        self._attach(DiscreteIwan(k, k * p))
+
+    @classmethod
+    def from_sliders(cls, sliders: DiscreteIwan) -> JenkinsElements:
+        """The rig's view of a ground :class:`~jointid.joints.DiscreteIwan` (its stiffnesses and
+        slip forces kept to the bit)."""
+        out = object.__new__(cls)
+        out._attach(sliders)
+        return out
+
+    def _attach(self, sliders: DiscreteIwan):
+        phi = sliders.slip_displacement
+        phi.setflags(write=False)
+        object.__setattr__(self, "sliders", sliders)
+        object.__setattr__(self, "stiffness", sliders.stiffness)
+        object.__setattr__(self, "slip", phi)
 
     @property
     def n_elements(self) -> int:
-        return self.stiffness.size
+        return self.sliders.n_elements
 
     @property
     def total_stiffness(self) -> float:
         """Stiffness with every element stuck."""
-        return self._k_total
+        return self.sliders.total_stiffness
 
     @property
     def slip_force(self) -> float:
@@ -264,10 +284,7 @@ class JenkinsElements:
 
     def force(self, u, v, state):
         """One time step: ``(force, new_state)`` for relative motion ``u`` (any shape)."""
-        u = np.asarray(u, float)
-        uu = u[..., None]
-        x = np.minimum(np.maximum(state, uu - self.slip), uu + self.slip)
-        return self._k_total * u - x @ self.stiffness, x
+        return self.sliders.force(u, v, state)
 
     def periodic_force(self, u, jacobian: bool = False):
         """Steady periodic force of a periodic motion sampled over one period.
@@ -284,79 +301,56 @@ class JenkinsElements:
         f : array, shape (..., N)
             The force on the periodic orbit.
         state0 : array, shape (..., n_elements)
-            Slider positions at the first sample.
+            Slider positions at the first sample (:meth:`orbit_state`).
         D : array, shape (N, N)
             Only with ``jacobian=True``.
 
         Notes
         -----
-        On the periodic orbit the state at the largest sample ``u_max`` is known
-        (Masing): an element whose slip displacement is below half the range
-        ``(u_max - u_min) / 2`` has just slipped forward, ``x = u_max - phi``; an element
-        that never slips keeps the centre of the range, ``x = (u_max + u_min) / 2``
-        (the state reached by a vibration growing from rest).  One sweep of the period
-        from that sample gives the exact periodic force, minor loops included.
-
-        The Jacobian follows from the same sweep: a stuck element's slider sits where
-        the motion left it at its last slip, so ``d x_i(t_j) / d u`` is the unit vector
-        of that sample (the maximum for elements slipped at the start, half the maximum
-        and half the minimum for elements that never slip).  The sampled map is piecewise
-        linear in ``u`` and ``D`` is its exact derivative.
+        ``f`` and ``D`` are :meth:`DiscreteIwan.aft <jointid.joints.DiscreteIwan.aft>` with
+        ``state0="centre"``: an element that slips over the period reaches its periodic
+        (Masing) state whatever its start; one that never slips keeps the centre of the range
+        ``(u_max + u_min) / 2`` (the state reached by a vibration growing from rest), and the
+        Jacobian includes that dependence on the largest and smallest samples.
         """
         u = np.asarray(u, float)
         if jacobian and u.ndim != 1:
             raise ValueError(f"the Jacobian is available for a single period (1-D u), got shape {u.shape}")
+        f, D = self.sliders.aft(u, state0="centre", jacobian=jacobian)
+        return (f, self.orbit_state(u), D) if jacobian else (f, self.orbit_state(u))
+
+    def orbit_state(self, u) -> np.ndarray:
+        """Slider positions after the first sample of the periodic orbit of ``u (..., N)``.
+
+        On the orbit the state at the largest sample ``u_max`` is known (Masing): an element
+        whose slip displacement is below half the range has just slipped forward,
+        ``x = u_max - phi``; one that never slips sits at the centre of the range.  The time
+        step (:meth:`force`) carries it from that sample to the first one; a time
+        integration started there stays on the orbit.
+        """
+        u = np.asarray(u, float)
         N = u.shape[-1]
         i0 = np.argmax(u, axis=-1)
-        idx = (i0[..., None] + np.arange(N)) % N
-        ur = np.take_along_axis(u, idx, axis=-1)
-        umax = ur[..., 0]
-        umin = ur.min(axis=-1)
-        half = 0.5 * (umax - umin)
-        centre = 0.5 * (umax + umin)
+        ur = np.take_along_axis(u, (i0[..., None] + np.arange(N)) % N, axis=-1)
+        umax, umin = ur[..., 0], ur.min(axis=-1)
         phi = self.slip
-        slipping = phi < half[..., None]
-        x = np.where(slipping, umax[..., None] - phi, centre[..., None])
+        x = np.where(phi < 0.5 * (umax - umin)[..., None], umax[..., None] - phi, 0.5 * (umax + umin)[..., None])
         j0 = (N - i0) % N  # step at which the original sample 0 is reached
         state0 = np.empty_like(x)
-        fr = np.empty_like(ur)
-        k = self.stiffness
-        if jacobian:
-            last = np.where(slipping, 0, -1)
-            history = np.empty((N, last.size), dtype=np.intp)
-        for j in range(N):
-            uj = ur[..., j, None]
-            xn = np.minimum(np.maximum(x, uj - phi), uj + phi)
-            if jacobian:
-                last[xn != x] = j
-                history[j] = last
-            x = xn
-            fr[..., j] = self._k_total * ur[..., j] - x @ k
+        for j in range(int(np.max(j0)) + 1):
+            _, x = self.force(ur[..., j], None, x)
             hit = j0 == j
             if np.any(hit):
                 state0[hit] = x[hit]
-        f = np.empty_like(fr)
-        np.put_along_axis(f, idx, fr, axis=-1)
-        if not jacobian:
-            return f, state0
-        # d x_i(t_j) / d u = unit vector of the last slip sample (rolled numbering)
-        seen = history >= 0
-        rows = np.broadcast_to(np.arange(N)[:, None], history.shape)
-        weights = np.broadcast_to(k, history.shape)
-        Dr = -np.bincount((rows * N + history)[seen], weights=weights[seen], minlength=N * N).astype(float)
-        Dr = Dr.reshape(N, N)
-        Dr[np.arange(N), np.arange(N)] += self._k_total
-        k_never = float(k[~slipping].sum())
-        if k_never:
-            Dr[:, 0] -= 0.5 * k_never
-            Dr[:, int(np.argmin(ur))] -= 0.5 * k_never
-        D = np.empty_like(Dr)
-        D[np.ix_(idx, idx)] = Dr
-        return f, state0, D
+        return state0
 
 
 def discretize_iwan(params: IwanParameters, n_elements: int = 100, phi_min_ratio: float = 1e-5) -> JenkinsElements:
     """Jenkins elements approximating a four-parameter Iwan model.
+
+    The discretisation of the ground law, :func:`jointid.joints.discretize_iwan4` (geometric
+    interval edges down to ``phi_min_ratio phi_max``, each element the exact integral of the
+    density over its interval, the delta part one more element), with the rig's defaults.
 
     Parameters
     ----------
@@ -383,15 +377,7 @@ def discretize_iwan(params: IwanParameters, n_elements: int = 100, phi_min_ratio
         raise StructureError(f"n_elements: expected an integer >= 2, got {n_elements!r}")
     if not 0.0 < phi_min_ratio < 1.0:
         raise StructureError(f"phi_min_ratio: expected a value in (0, 1), got {phi_min_ratio!r}")
-    pm, chi, R = params.phi_max, params.chi, params.R
-    edges = np.concatenate([[0.0], pm * np.geomspace(phi_min_ratio, 1.0, n)])
-    k = R * np.diff(edges ** (chi + 1.0)) / (chi + 1.0)
-    s = R * np.diff(edges ** (chi + 2.0)) / (chi + 2.0)
-    slip = s / k
-    if params.S > 0:
-        k = np.append(k, params.S)
-        slip = np.append(slip, pm)
-    return JenkinsElements(k, slip)
+    return JenkinsElements.from_sliders(discretize_iwan4(params, n, phi_min_ratio))
 
 
 @dataclass(frozen=True, eq=False)
@@ -466,14 +452,27 @@ class JointLaw:
         (see :meth:`JenkinsElements.periodic_force`).
         """
         u = np.asarray(u, float)
+        if jacobian and u.ndim != 1:
+            raise ValueError(f"the Jacobian is available for a single period (1-D u), got shape {u.shape}")
+        f, D = self.aft(u, jacobian=jacobian)
+        return (f, self.orbit_state(u), D) if jacobian else (f, self.orbit_state(u))
+
+    def aft(self, u, jacobian: bool = False):
+        """``(f, D)`` of :meth:`periodic_force` without the state (``D`` is None unless asked)."""
+        u = np.asarray(u, float)
         f = -self.k3 * u**3
         if self.elements is None:
-            out = (f, np.zeros(u.shape[:-1] + (0,)))
-            return out + (np.diag(-3.0 * self.k3 * u**2),) if jacobian else out
-        res = self.elements.periodic_force(u, jacobian=jacobian)
-        if not jacobian:
-            return f + res[0], res[1]
-        return f + res[0], res[1], res[2] + np.diag(-3.0 * self.k3 * u**2)
+            return f, (np.diag(-3.0 * self.k3 * u**2) if jacobian else None)
+        fi, D = self.elements.sliders.aft(u, state0="centre", jacobian=jacobian)
+        return f + fi, (D + np.diag(-3.0 * self.k3 * u**2) if jacobian else None)
+
+    def orbit_state(self, u) -> np.ndarray:
+        """Hysteretic state at the first sample of the periodic orbit of ``u (..., N)``
+        (:meth:`JenkinsElements.orbit_state`; shape ``(..., 0)`` without an Iwan part)."""
+        u = np.asarray(u, float)
+        if self.elements is None:
+            return np.zeros(u.shape[:-1] + (0,))
+        return self.elements.orbit_state(u)
 
     def summary(self) -> dict:
         return {

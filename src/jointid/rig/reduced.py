@@ -107,22 +107,25 @@ def sample_series(coefficients, omega, n_samples, dt, derivative: int = 0) -> np
 class _RigLawAFT:
     """A rig joint law seen through the :mod:`jointid.joints` AFT protocol (``aft``).
 
-    It keeps the hysteretic state at ``t = 0`` of the last period it evaluated (the state of
-    the converged orbit once the harmonic balance returns), for time integrations that start
-    on the orbit.
+    It keeps the motion of the last period it evaluated; :attr:`state` is the hysteretic
+    state at ``t = 0`` of that period's orbit (the converged orbit once the harmonic balance
+    returns), for time integrations that start on the orbit.  It is computed on request, not
+    at every Newton iteration.
     """
 
     rate_dependent = False
 
     def __init__(self, law: JointLaw):
         self.law = law
-        self.state = None
+        self._u = None
+
+    @property
+    def state(self):
+        return None if self._u is None else self.law.orbit_state(self._u)
 
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True):
-        if jacobian:
-            f, self.state, D = self.law.periodic_force(u_t, jacobian=True)
-        else:
-            (f, self.state), D = self.law.periodic_force(u_t), None
+        self._u = np.array(u_t, float)
+        f, D = self.law.aft(self._u, jacobian=jacobian)
         return (f, D, None) if velocity_jacobian else (f, D)
 
 
