@@ -37,6 +37,7 @@ from ..io.channels import Channels
 from ..modal.analysis import ModalModel, modal_analysis
 from ..modal.beam import SEED_GEOMETRY, JointedBeam, seed_bolted_beam
 from ..numerics.peaks import parabolic_peak, refine_peak  # noqa: F401 (refine_peak re-exported: jointid.rig.rig.refine_peak)
+from ..simulate.nlmodes import epmc_backbone
 from .iwan import IwanParameters, JointLaw
 from .reduced import JOINT_DIRECTIONS, ReducedModel, RigSteadyState, sample_series, settle_check
 
@@ -482,83 +483,40 @@ class VirtualRig:
         (all ``n_modes`` modes, ``n_harmonics`` harmonics, joint force by AFT with its exact
         Jacobian) is solved for the harmonics, the frequency ``omega`` and the damping ``xi``
         that makes it periodic (the extended periodic motion concept, Krack 2015), with
-        ``eta_1 = a cos(omega t) + higher harmonics``; ``zeta = xi / (2 omega)``.
+        ``eta_1 = a cos(omega t) + higher harmonics``; ``zeta = xi / (2 omega)``.  The solver
+        is the engine's, :func:`jointid.simulate.nlmodes.epmc_backbone` on
+        :meth:`ReducedModel.engine` (condensed on the joint coordinates, continued over the
+        amplitudes in the given order).
 
         Parameters
         ----------
         amplitudes : array_like
-            First-harmonic amplitudes of ``eta_1`` (continued in the given order).
+            First-harmonic amplitudes of ``eta_1``, positive (continued in the given order).
         n_harmonics, n_time : int
         tol : float
-            On the relative residual.
+            On the relative residual of the condensed equations.
 
         Returns
         -------
         Backbone
             ``source = "rig"``, zero standard errors.
+
+        Raises
+        ------
+        ConvergenceError
+            When an amplitude cannot be reached (the message names it).
         """
         from ..identify.backbone import Backbone
 
-        m = self.model
-        H = int(n_harmonics)
-        n = 2 * H + 1
-        nm, nj = m.n_modes, m.n_joints
-        kk = np.zeros(n)
-        kk[1::2] = kk[2::2] = np.arange(1, H + 1)
-        Psi = m.joint_shapes
-        free = np.ones(nm * n + 2, bool)
-        free[[1, 2]] = False  # eta_1: a1 = a, b1 = 0
-
-        def residual(Y, w, xi, jac):
-            U = Psi @ Y
-            F, JF = m.joint_aft(U, n_time, jacobian=jac)
-            R = Psi.T @ F
-            d = 2 * m.zeta * m.omega - xi
-            R = R + (m.omega[:, None] ** 2 - (kk * w) ** 2) * Y
-            R[:, 1::2] += d[:, None] * kk[1::2] * w * Y[:, 2::2]
-            R[:, 2::2] -= d[:, None] * kk[2::2] * w * Y[:, 1::2]
-            if not jac:
-                return R
-            J = np.zeros((nm, n, nm * n + 2))
-            JF4 = JF.reshape(nj, n, nj, n)
-            G = np.einsum("jm,jakb,kl->malb", Psi, JF4, Psi).reshape(nm, n, nm * n)
-            J[:, :, : nm * n] = G
-            for i in range(nm):
-                blk = np.diag(m.omega[i] ** 2 - (kk * w) ** 2)
-                for h in range(1, H + 1):
-                    a_, b_ = 2 * h - 1, 2 * h
-                    blk[a_, b_] += d[i] * h * w
-                    blk[b_, a_] -= d[i] * h * w
-                J[i, :, i * n:(i + 1) * n] += blk
-                J[i, :, -2] = -2 * kk**2 * w * Y[i]
-                J[i, 1::2, -2] += d[i] * kk[1::2] * Y[i, 2::2]
-                J[i, 2::2, -2] -= d[i] * kk[2::2] * Y[i, 1::2]
-                J[i, 1::2, -1] = -kk[1::2] * w * Y[i, 2::2]
-                J[i, 2::2, -1] = kk[2::2] * w * Y[i, 1::2]
-            return R, J.reshape(nm * n, nm * n + 2)
-
         a_list = np.atleast_1d(np.asarray(amplitudes, float))
-        Y = np.zeros((nm, n))
-        w, xi = float(m.omega[0]), float(2 * m.zeta[0] * m.omega[0])
-        om, ze = [], []
-        for a in a_list:
-            Y[0, 1], Y[0, 2] = a, 0.0
-            scale = float(m.omega[0] ** 2 * a)
-            for it in range(60):
-                R, J = residual(Y, w, xi, True)
-                err = np.linalg.norm(R) / scale
-                if err < tol:
-                    break
-                step = np.linalg.lstsq(J[:, free], -R.ravel(), rcond=None)[0]
-                x = np.concatenate([Y.ravel(), [w, xi]])
-                x[free] += step
-                Y, w, xi = x[: nm * n].reshape(nm, n), x[-2], x[-1]
-            else:
-                raise ConvergenceError(f"rig backbone at amplitude {a:.4g}: residual {err:.3g} after 60 Newton steps")
-            om.append(w)
-            ze.append(xi / (2 * w))
-        return Backbone(a_list, np.array(om), np.array(ze), 0.0, 0.0, "rig", 0.0, f"virtual rig, preload {self.preload:g} N",
-                        {"n_harmonics": H, "n_modes": nm})
+        try:
+            bb = epmc_backbone(self.model.engine(), 0, a_list, int(n_harmonics), n_time=int(n_time), tol=tol,
+                               max_iter=60)
+        except ConvergenceError as exc:
+            raise ConvergenceError(f"rig backbone: {exc}") from None
+        return Backbone(a_list, bb.omega, bb.damping_ratio, 0.0, 0.0, "rig", 0.0,
+                        f"virtual rig, preload {self.preload:g} N",
+                        {"n_harmonics": int(n_harmonics), "n_modes": self.model.n_modes})
 
     def phase_resonance(self, force_amplitude, band=(0.97, 1.01)) -> RigSteadyState:
         """The steady state in phase resonance at a force level: ``eta_1`` in quadrature with the force."""
