@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import StructureError
-from ..joints import DiscreteIwan, discretize_iwan4
+from ..joints import DiscreteIwan, Iwan4, discretize_iwan4
 
 __all__ = ["IwanParameters", "JenkinsElements", "JointLaw", "discretize_iwan"]
 
@@ -114,6 +114,7 @@ class IwanParameters:
     K_T: float
     chi: float
     beta: float
+    _law: Iwan4 = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self):
         object.__setattr__(self, "F_S", _finite("F_S", self.F_S, positive=True))
@@ -123,6 +124,8 @@ class IwanParameters:
             raise StructureError(f"Iwan parameter chi: expected -1 < chi < 1, got {self.chi!r}")
         object.__setattr__(self, "chi", chi)
         object.__setattr__(self, "beta", _finite("beta", self.beta, nonneg=True))
+        # the ground law carries the closed forms that are the same to the bit (its sliders are not used)
+        object.__setattr__(self, "_law", Iwan4(self.F_S, self.K_T, chi, self.beta, n_sliders=2))
 
     # --- derived parameters ---------------------------------------------------------
     @property
@@ -151,15 +154,9 @@ class IwanParameters:
 
     # --- closed forms -----------------------------------------------------------------
     def backbone(self, u):
-        """Virgin loading force ``f(u)`` (odd in ``u``; ``F_S sign(u)`` in macro-slip)."""
-        u = np.asarray(u, float)
-        a = np.abs(u)
-        chi, R = self.chi, self.R
-        with np.errstate(invalid="ignore"):
-            micro = self.K_T * a - R * a ** (chi + 2.0) / ((chi + 1.0) * (chi + 2.0))
-        f = np.where(a < self.phi_max, micro, self.F_S)
-        out = np.sign(u) * f
-        return out[()] if out.ndim == 0 else out
+        """Virgin loading force ``f(u)`` (odd in ``u``; ``F_S sign(u)`` in macro-slip): the ground
+        law's closed form, :meth:`jointid.joints.Iwan4.backbone`."""
+        return self._law.backbone(u)
 
     def dissipation(self, amplitude):
         """Energy dissipated in one symmetric cycle of displacement amplitude ``u0``.
@@ -167,7 +164,10 @@ class IwanParameters:
         ``4 R u0^(chi + 3) / ((chi + 2)(chi + 3))`` in micro-slip (``u0 < phi_max``);
         beyond, every element slips and
         ``D = 4 R (u0 phi_max^(chi + 2) / (chi + 2) - phi_max^(chi + 3) / (chi + 3))
-        + 4 S phi_max (u0 - phi_max)``.
+        + 4 S phi_max (u0 - phi_max)``.  The same closed form as
+        :meth:`jointid.joints.Iwan4.dissipation`, kept here because it uses this class's ``S``
+        (``F_S / phi_max * beta / den``, which can differ from the ground's ``F_S beta /
+        (phi_max den)`` in the last bit and is the delta element's stiffness of the rig).
         """
         u0 = np.abs(np.asarray(amplitude, float))
         chi, R, S, pm = self.chi, self.R, self.S, self.phi_max
@@ -179,10 +179,9 @@ class IwanParameters:
         return out[()] if out.ndim == 0 else out
 
     def microslip_dissipation(self, force_amplitude):
-        """Segalman's small-force closed form ``4 R (F0 / K_T)^(chi + 3) / ((chi + 2)(chi + 3))``."""
-        F0 = np.abs(np.asarray(force_amplitude, float))
-        out = 4.0 * self.R * (F0 / self.K_T) ** (self.chi + 3.0) / ((self.chi + 2.0) * (self.chi + 3.0))
-        return out[()] if out.ndim == 0 else out
+        """Segalman's small-force closed form ``4 R (F0 / K_T)^(chi + 3) / ((chi + 2)(chi + 3))``
+        (:meth:`jointid.joints.Iwan4.microslip_dissipation`)."""
+        return self._law.microslip_dissipation(force_amplitude)
 
     def displacement_at_force(self, force_amplitude):
         """Inverse of the backbone on ``[0, F_S)``: the amplitude ``u0`` whose force amplitude is ``F0``."""
