@@ -13,6 +13,7 @@ from jointid.errors import IdentificationError
 from jointid.identify.selection import (
     DEFAULT_CANDIDATES,
     Candidate,
+    default_candidates,
     forward_selection,
     select_model,
 )
@@ -69,6 +70,12 @@ def _select(sigs, lev, **kw):
         return select_model(sigs, lev, **kw)
 
 
+#: The polynomial and amplitude-law families: without held-out amplitude scores (cv_amplitude=False) the pick
+#: is by the criterion, which the hysteretic candidates do not have (BIC inf: never picked, ranking unchanged);
+#: fitting their loops took about three quarters of each selection's time.
+POLYNOMIAL_FAMILIES = default_candidates(hysteretic=False)
+
+
 @pytest.mark.parametrize("family, seed, noise", [
     ("cubic", 1, 0.01),
     ("cubic + quintic", 2, 0.005),
@@ -80,7 +87,7 @@ def test_generating_family_selected(family, seed, noise):
     # Coulomb friction's switching instants need a fine harmonic-balance time grid to make exact data
     n_time = 4096 if family == "Coulomb + viscous" else None
     sigs, lev = campaign(TRUTH[family], seed, noise, n_frequencies=7, n_time=n_time)
-    sel = _select(sigs, lev, cv_amplitude=False, fit_selected=False)
+    sel = _select(sigs, lev, candidates=POLYNOMIAL_FAMILIES, cv_amplitude=False, fit_selected=False)
     assert sel.selected == family, sel.report()
     assert not spurious_resolved(sel, TRUTH[family])
     # the generating model explains the data to the noise (calibrated chi-square; sign(q') compared
@@ -187,7 +194,7 @@ def test_generating_family_selected_in_90_percent_of_50_campaigns(family):
     hits, spurious = 0, []
     for k in range(50):
         sigs, lev = campaign(TRUTH[family], 1000 + k, 0.005 if k % 2 else 0.01)
-        sel = _select(sigs, lev, cv_amplitude=False, fit_selected=False)
+        sel = _select(sigs, lev, candidates=POLYNOMIAL_FAMILIES, cv_amplitude=False, fit_selected=False)
         hits += sel.selected == family
         spurious += spurious_resolved(sel, TRUTH[family])
     print(f"{family}: {hits}/50 selected")
