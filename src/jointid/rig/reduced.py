@@ -15,8 +15,9 @@ Two solvers share the joint-law protocol of :mod:`jointid.rig.iwan`:
 
 * :meth:`ReducedModel.harmonic_balance` -- the multi-mode harmonic balance of
   :class:`jointid.simulate.structure_hb.CondensedHB` with the joint force evaluated in time
-  on one period (alternating frequency/time, the Iwan state from
-  :meth:`~jointid.rig.iwan.JointLaw.periodic_force`).  Because the nonlinearity acts
+  on one period (alternating frequency/time: the ground sliders' AFT through
+  :meth:`~jointid.rig.iwan.JointLaw.aft`, the Iwan state of the converged orbit from
+  :meth:`~jointid.rig.iwan.JointLaw.orbit_state`).  Because the nonlinearity acts
   only through ``u``, the modal unknowns are condensed exactly onto the joint
   coordinates: for harmonic ``k`` with complex amplitudes,
   ``u_k = Psi H_k phi_f F_k - Psi H_k Psi^T f_k`` with the modal receptance
