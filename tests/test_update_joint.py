@@ -89,7 +89,7 @@ def test_parameters_recovered_within_their_intervals(setup):
         assert lo < v < hi, (k, v, res.ci95[k])
         assert res.stderr[k] < 0.01 * v  # 21 points at 0.5 %: both parameters well determined
         assert abs(res.estimate[k] - v) < 3 * res.stderr[k]
-    assert 0.6 < res.chi2_per_dof < 1.5
+    assert 0.6 < res.chi2_per_dof < 1.5 and res.adequate and res.summary()["fit_adequate"] is True
     assert res.dof == 2 * 21 - 2
     # the start was far away (kt -17 %, Fs +25 %): the fit moved
     assert abs(res.estimate["Fs"] / 5.0 - 1) > 0.1
@@ -104,7 +104,7 @@ def test_measured_csv_roundtrip_and_cli(setup, tmp_path, capsys):
     out = tmp_path / "upd"
     code = main(["update", str(model), str(csv), "--out", str(out), "--parameters", "Fs", "--no-heldout",
                  "--quiet"])
-    assert code == 0
+    assert code == 1  # inadequate (see below): a status a script can see
     res = json.loads((out / "results.json").read_text())
     for key in ("parameters", "stderr", "ci95", "chi2_per_dof", "heldout", "units", "correlation"):
         assert key in res
@@ -112,6 +112,7 @@ def test_measured_csv_roundtrip_and_cli(setup, tmp_path, capsys):
     assert (out / "report.txt").is_file() and (out / "figures" / "update_fit.png").is_file()
     # kt held at its wrong start (1e4 vs 1.2e4): Fs cannot make up for it, chi2/dof says so
     assert res["chi2_per_dof"] > 10 and any("does not fit" in w for w in res["warnings"])
+    assert res["fit_adequate"] is False and "does not fit" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("text, what", [

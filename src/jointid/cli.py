@@ -497,7 +497,9 @@ def _update(args) -> int:
     if not args.quiet:
         print(res.report())
         print(f"\nresults written to {args.out}")
-    return EXIT_OK
+    elif not res.adequate:
+        print(f"jointid update: {res.warnings[-1]}", file=sys.stderr)
+    return EXIT_OK if res.adequate else EXIT_PARTIAL  # an inadequate law: a status a script can see
 
 
 COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal,

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import scipy.optimize
 
-from ..errors import ConvergenceError, IdentificationError, ManifestError, RecordFileNotFoundError
+from ..errors import ConvergenceError, IdentificationError, ManifestError, RecordFileNotFoundError, StructureError
 from ..io.structure_model import read_structure_model
 from ..simulate.structure import JointElement, StructureModel, structure_from_spec
 from ..simulate.structure_hb import to_complex
@@ -49,6 +49,8 @@ __all__ = ["MeasuredFRF", "JointUpdate", "read_measured_frf", "update_joint", "w
 
 _COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
 Z95 = 1.959963984540054
+#: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
+ADEQUATE_CHI2_PER_DOF = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,7 +155,7 @@ class _Fitter:
     def residual(self, theta, meas):
         try:
             d = (self.responses(theta, meas) - meas.X) / meas.se
-        except ConvergenceError:
+        except (ConvergenceError, StructureError):  # no steady state, or a step outside the law's bounds
             return np.full(2 * meas.X.size, 1e6)
         return np.concatenate([d.real, d.imag])
 
@@ -192,13 +194,18 @@ class JointUpdate:
     def chi2_per_dof(self) -> float:
         return self.chi2 / self.dof if self.dof > 0 else float("nan")
 
+    @property
+    def adequate(self) -> bool:
+        """chi2/dof <= 4: the law fits the points to within twice their standard errors (rms)."""
+        return bool(self.chi2_per_dof <= ADEQUATE_CHI2_PER_DOF)
+
     def summary(self) -> dict:
         return {
             "kind": "joint_update", "model": self.model_path, "measured": self.measured_path,
             "joint": self.joint, "law": self.law, "units": self.units,
             "parameters": self.estimate, "start": self.start, "stderr": self.stderr, "ci95": self.ci95,
             "log_parametrised": self.log_parametrised, "correlation": self.correlation,
-            "chi2": self.chi2, "dof": self.dof, "chi2_per_dof": self.chi2_per_dof,
+            "chi2": self.chi2, "dof": self.dof, "chi2_per_dof": self.chi2_per_dof, "fit_adequate": self.adequate,
             "covariance_scaled_by_chi2_per_dof": self.covariance_scaled,
             "n_points": self.n_points, "n_harmonics": self.n_harmonics, "function_evaluations": self.nfev,
             "heldout": self.heldout, "warnings": self.warnings,
@@ -342,7 +349,7 @@ def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmoni
     with np.errstate(invalid="ignore", divide="ignore"):
         d = np.sqrt(np.diag(cov))
         corr = (cov / np.outer(d, d)).tolist()
-    if chi2 / dof > 4:
+    if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
     res = JointUpdate(str(spec.path), meas.path, names_j[j], law.name, names, {k: law.units.get(k, "") for k in names},
                       {k: law.parameters[k] for k in names}, est, se, ci, dict(zip(names, fitter.log)),
