@@ -58,6 +58,7 @@ Laws
 :class:`Iwan4`            Segalman's four-parameter Iwan model (closed forms; evaluated on its
                           discretisation :func:`discretize_iwan4`)
 :class:`BoucWen`          smooth hysteresis (exponent one, integrated exactly between samples)
+:class:`ExactReversals`   a slider law whose ``aft`` reverses at the exact extrema of the motion
 
 The closed forms and references are in ``docs/joint-laws.md``.
 
@@ -75,6 +76,7 @@ from ._core import JointLaw, harmonic_motion, loop_energy
 from .boucwen import BoucWen
 from .iwan import Iwan4, discretize_iwan4
 from .polynomial import TERM_FUNCTIONS, PolynomialLaw
+from .reversals import ExactReversals
 from .sliders import DiscreteIwan, Jenkins, jenkins_harmonic_stiffness
 
 __all__ = [
@@ -86,6 +88,7 @@ __all__ = [
     "Iwan4",
     "discretize_iwan4",
     "BoucWen",
+    "ExactReversals",
     "jenkins_harmonic_stiffness",
     "harmonic_motion",
     "loop_energy",
