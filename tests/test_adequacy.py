@@ -46,6 +46,9 @@ def test_cubic_model_flagged_on_amplitude_dependent_stiffness():
     # the selected family passes the same checks
     good = _check(sigs, lev, "q + q'", amplitude_laws={"q": 2, "q'": 2})
     assert good.adequate, good.report()
+    # named by its laws too: the same terms without a stiffness law are the linear model
+    assert good.model_name == "amplitude-dependent stiffness" and "linear" not in good.report()
+    assert _check(sigs, lev, "q + q'", amplitude_laws={"q'": 2}).model_name == "linear"
 
 
 def test_outlier_record_found():

@@ -65,17 +65,20 @@ def _p_text(p) -> str:
     return "p < 1e-6" if p < 1e-6 else f"p = {p:.2g}"
 
 
-def model_name(terms, power_laws=False) -> str:
+def model_name(terms, power_laws=False, stiffness_law=None) -> str:
     """A family name for a term set (``"cubic"`` for ``q, -q^3, q'``), else the terms themselves.
 
     ``power_laws``: the model has micro-slip power laws (the micro-slip families of the same terms).
+    ``stiffness_law``: whether the model has an amplitude law on its stiffness (``q + q'`` with one is
+    the amplitude-dependent stiffness, not the linear model); ``None`` does not tell them apart.
     """
     from .selection import DEFAULT_CANDIDATES
     from .terms import library
 
     names = set(library(list(terms)).names)
     for c in DEFAULT_CANDIDATES:
-        if c.hysteretic is None and set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws):
+        if c.hysteretic is None and set(c.library.names) == names and bool(c.n_exponents) == bool(power_laws) \
+                and (stiffness_law is None or bool(c.laws.get("q", 0)) == bool(stiffness_law)):
             return c.name
     return " + ".join(terms) + ("; power laws" if power_laws else "")
 
@@ -553,7 +556,7 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
         eq, chi2, dof, p = (), float("nan"), 0, float("nan")
     terms = tuple(model.terms) if model is not None else tuple(level_fits[0][1].terms) if level_fits else ()
     power = model is not None and any(is_power(L) for L in model.law_orders)
-    name = model_name(terms, power) if terms else "?"
+    name = model_name(terms, power, stiffness_law if model is not None else None) if terms else "?"
     msgs, adequate = [], True
     differ = [e for e in eq if e.differs]
     if dof and p < P_LIMIT:
