@@ -40,6 +40,7 @@ from scipy import optimize
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from ..joints import Iwan4, Jenkins
+from ..joints.sliders import _BLOCK_ELEMENTS, _play_block
 from ..signal.harmonics import StateSignals
 
 __all__ = ["HystereticForceStateMapping", "HystereticFit", "LAWS", "first_harmonic_peak", "first_harmonic_response"]
@@ -53,6 +54,9 @@ NOISE_HARMONICS = 25
 _Z95 = 1.959963984540054
 #: Local searches started from the coarse grid's best distinct points.
 N_STARTS = 3
+#: Tolerances of those searches: they only choose the basin that the final search (full period, tolerances
+#: 1e-12) refines, and a relative cost change of 1e-8 is ~1e-6 in chi-square, far below one standard error.
+SEARCH_TOL = 1e-8
 
 
 def _basis(tau, omega, n_harmonics, dc=True):
@@ -149,6 +153,12 @@ class _JenkinsShape:
     def law(self, scale, eta):
         return Jenkins(scale, scale * math.exp(eta[0]))
 
+    @staticmethod
+    def unit_sliders(eta):
+        """``(k, phi, dk, dphi)``: the unit law's elements and their derivatives by ``eta`` (``(ne, m)``)."""
+        a_s = math.exp(eta[0])
+        return np.ones(1), np.array([a_s]), np.zeros((1, 1)), np.array([[a_s]])
+
     def bounds(self, qmax):
         return [math.log(qmax.min() * 1e-3)], [math.log(qmax.max() * 10.0)]
 
@@ -183,6 +193,33 @@ class _Iwan4Shape:
 
     def unit(self, eta):
         return self.law(1.0, eta)
+
+    def _elements(self, eta):
+        sl = self.unit(eta).sliders
+        k, phi = sl.stiffness, sl.slip_displacement
+        if k.size == self.n_sliders:  # no delta element (beta = 0): one of zero stiffness keeps the shapes
+            k, phi = np.append(k, 0.0), np.append(phi, math.exp(eta[0]))
+        return k, phi
+
+    def unit_sliders(self, eta):
+        """``(k, phi, dk, dphi)``: the unit law's elements and their derivatives by ``eta`` (``(3, m)``).
+
+        The derivatives are central differences of the discretisation's closed-form weights
+        (no force evaluation; one-sided at ``beta = 0``, where the law clips ``beta``).
+        """
+        eta = np.asarray(eta, float)
+        k, phi = self._elements(eta)
+        dk, dphi = np.empty((3, k.size)), np.empty((3, k.size))
+        for i in range(3):
+            h = 1e-6 * max(1.0, abs(eta[i]))
+            e1, e2 = eta.copy(), eta.copy()
+            e1[i] += h
+            e2[i] -= h
+            if i == 2:
+                e2[i] = max(e2[i], 0.0)
+            (k1, p1), (k2, p2) = self._elements(e1), self._elements(e2)
+            dk[i], dphi[i] = (k1 - k2) / (e1[i] - e2[i]), (p1 - p2) / (e1[i] - e2[i])
+        return k, phi, dk, dphi
 
     @staticmethod
     def reach(eta):
@@ -453,6 +490,12 @@ class HystereticForceStateMapping:
         calibrated residual).  Records that do not show the joint's macro-slip cannot place its
         onset; a law that ends its micro-slip just beyond the data would change regime where
         nothing supports it, and extrapolate with too little dissipation.  A warning says so.
+    jacobian : {"exact", "2-point", "3-point"}
+        Jacobian of the projected residual in the searches: ``"exact"`` (default) differentiates
+        the law's sampled force in its nonlinear parameters (the element positions' piecewise
+        dependence on the slip displacements) and projects it (Golub-Pereyra), at about the cost
+        of one force evaluation; the others are ``least_squares``' finite differences (each
+        column one or two more evaluations), kept to compare.
 
     Attributes
     ----------
@@ -462,7 +505,10 @@ class HystereticForceStateMapping:
     """
 
     def __init__(self, law="jenkins", n_time=512, n_sliders=60, phi_min_ratio=1e-4, start=None, search_evaluations=200,
-                 max_evaluations=400, fit_harmonics=None, micro_slip_reach=None):
+                 max_evaluations=400, fit_harmonics=None, micro_slip_reach=None, jacobian="exact"):
+        if jacobian not in ("exact", "2-point", "3-point"):
+            raise IdentificationError(f"jacobian must be 'exact', '2-point' or '3-point', got {jacobian!r}")
+        self.jacobian = jacobian
         self.fit_harmonics = None if fit_harmonics is None else int(fit_harmonics)
         if self.fit_harmonics is not None and self.fit_harmonics < 1:
             raise IdentificationError(f"fit_harmonics must be at least 1, got {fit_harmonics!r}")
@@ -491,19 +537,87 @@ class HystereticForceStateMapping:
         return out, D
 
     @staticmethod
+    def _law_coeffs_d(shape, eta, U, P):
+        """The unit law's projected force ``(nr, 2Hm)`` and its exact derivatives by ``eta`` ``(ne, nr, 2Hm)``.
+
+        The elements' positions over the two sweeps of :meth:`JointLaw.aft` (virgin start, the
+        second sweep periodic); an element's force ``k (u - x)`` depends on its stiffness
+        directly and on its slip displacement through the last slip: ``x = u_j -+ phi`` there and
+        constant since, so ``d (u - x) / d phi`` is the sign of that slip (zero if it never slipped).
+        """
+        k, phi, dk, dphi = shape.unit_sliders(eta)
+        nr, n = U.shape
+        m = k.size
+        kd = np.ascontiguousarray((k * dphi).T)  # (m, ne): the force's change per unit slip sign
+        dkT = np.ascontiguousarray(dk.T)
+        phi2 = phi * (1.0 + 1e-6)  # the slip signs, from the positions' change with phi (x = u_j -+ phi)
+        inv = 1.0 / (phi2 - phi)
+        x = _play_block(U, np.zeros((nr, m)), phi, end_only=True)  # the first sweep's end states
+        x2 = _play_block(U, np.zeros((nr, m)), phi2, end_only=True)
+        f, df = np.empty((n, nr)), np.empty((n, nr, dk.shape[0]))
+        tb = max(2, _BLOCK_ELEMENTS // max(nr * m, 1))
+        for t0 in range(0, n, tb):  # the periodic sweep a block of samples at a time (as aft)
+            t1 = min(n, t0 + tb)
+            X = _play_block(U[:, t0:t1], x, phi)  # (tb, nr, m)
+            X2 = _play_block(U[:, t0:t1], x2, phi2)
+            sg = np.rint((X - X2) * inv).reshape(-1, m)  # -1, 0 (never slipped) or 1
+            e = (U[:, t0:t1].T[:, :, None] - X).reshape(-1, m)  # the elements' deflection
+            f[t0:t1] = (e @ k).reshape(t1 - t0, nr)
+            df[t0:t1] = (e @ dkT + sg @ kd).reshape(t1 - t0, nr, -1)
+            x, x2 = X[-1], X2[-1]
+        f, df = f.T, df.transpose(2, 1, 0)  # (nr, n), (ne, nr, n)
+        return f @ P.T, df @ P.T
+
+    def _objective(self, shape, U, P, recs, W, c3=None):
+        """``(fun, jac)`` of the projected residual over ``eta`` for ``least_squares``.
+
+        ``jac`` is the exact variable-projection Jacobian (Golub and Pereyra):
+        ``-(I - X X^+) dX beta - (X^+)^T dX^T r``, with ``dX`` the law column's derivative; it
+        costs about two force evaluations and is computed only where the search asks for it.
+        """
+        def fun(eta):
+            return self._projected(shape, np.asarray(eta, float), U, P, recs, W, c3)[0]
+
+        def jac(eta):  # only where the search takes it (after a step is accepted), not at every trial point
+            eta = np.asarray(eta, float)
+            fc, dfc = self._law_coeffs_d(shape, eta, U, P)
+            X, y = self._assemble(fc, recs, W, c3)
+            beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+            r = y - X @ beta
+            Xp = np.linalg.pinv(X)
+            J = np.empty((r.size, eta.size))
+            for j in range(eta.size):
+                dcol = self._assemble(dfc[j], recs, W, None, law_only=True)
+                a = beta[2] * dcol
+                J[:, j] = -(a - X @ (Xp @ a)) - Xp[2] * (dcol @ r)
+            return J
+
+        return fun, jac
+
+    @staticmethod
     def _cubic_coeffs(U, P):
         """Harmonics of ``-q^3`` over each record's period (the column of ``k3``)."""
         return -(U**3) @ P.T
 
     def _design(self, shape, eta, U, P, recs, W, c3=None):
         fc, _ = self._law_coeffs(shape, eta, U, P, recs)
+        return self._assemble(fc, recs, W, c3)
+
+    @staticmethod
+    def _assemble(fc, recs, W, c3=None, law_only=False):
+        """Weighted design and data from the law's projected force ``fc`` (``law_only``: its column alone)."""
         blocks, ys = [], []
         for i, r in enumerate(recs):
             m, n = 2 * r.H, r.rows
+            if law_only:
+                blocks.append(W[i] * (r.U @ fc[i, :m][:n]))
+                continue
             cols = [r.d[1:], r.v[1:], fc[i, :m]] + ([] if c3 is None else [c3[i, :m]])
             X = np.column_stack(cols)[:n]
             blocks.append(W[i] * (r.U @ X))
             ys.append(W[i] * (r.U @ r.y[:n]))
+        if law_only:
+            return np.concatenate(blocks)
         return np.vstack(blocks), np.concatenate(ys)
 
     def _projected(self, shape, eta, U, P, recs, W, c3=None):
@@ -529,32 +643,37 @@ class HystereticForceStateMapping:
         c3 = self._cubic_coeffs(U, P) if cubic else None
         lo, hi = shape.bounds(qmax)
 
-        def proj(eta):
-            return self._projected(shape, np.asarray(eta, float), U, P, recs, W, c3)[0]
+        exact = self.jacobian == "exact"
 
+        def objective(Uo, Po, c3o):
+            if exact:
+                return self._objective(shape, Uo, Po, recs, W, c3o)
+            return (lambda eta: self._projected(shape, np.asarray(eta, float), Uo, Po, recs, W, c3o)[0]), self.jacobian
+
+        proj, proj_jac = objective(U, P, c3)
         lo_a, hi_a = np.array(lo) + 1e-9, np.array(hi) - 1e-9
-        opts = dict(bounds=(lo, hi), method="trf", jac="3-point", x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        opts = dict(bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
         if self.start is not None:
             eta0 = np.clip(np.asarray(self.start, float), lo_a, hi_a)
         else:  # coarse grid and local searches on a short period, then the full period from the best of them
             Uc, Pc, _ = self._periods(recs, min(128, int(self.n_time)))
             c3c = self._cubic_coeffs(Uc, Pc) if cubic else None
 
-            def coarse(eta):
-                return self._projected(shape, np.asarray(eta, float), Uc, Pc, recs, W, c3c)[0]
-
+            coarse, coarse_jac = objective(Uc, Pc, c3c)
             cands = [np.clip(g, lo_a, hi_a) for g in shape.grid(qmax)]
-            costs = np.array([float(np.sum(coarse(g) ** 2)) for g in cands])
+            costs = np.array([float(np.sum(self._projected(shape, g, Uc, Pc, recs, W, c3c)[0] ** 2)) for g in cands])
             starts = []
             for i in np.argsort(costs):
                 if all(np.max(np.abs(cands[i] - s0)) > 0.6 for s0 in starts):
                     starts.append(cands[i])
                 if len(starts) == N_STARTS:
                     break
-            best = min((optimize.least_squares(coarse, s0, max_nfev=self.search_evaluations, **opts)
+            search = {**opts, "xtol": SEARCH_TOL, "ftol": SEARCH_TOL, "gtol": SEARCH_TOL}
+            best = min((optimize.least_squares(coarse, s0, jac=coarse_jac, max_nfev=self.search_evaluations, **search)
                         for s0 in starts),
                        key=lambda r: r.cost)
             eta0 = np.clip(best.x, lo_a, hi_a)
+        opts["jac"] = proj_jac
         sol = optimize.least_squares(proj, eta0, max_nfev=self.max_evaluations, **opts)
         warn = []
         sol, lo = self._micro_slip(shape, sol, proj, opts, lo, hi, qmax, context, warn)
