@@ -185,3 +185,32 @@ def test_preload_model_of_coulomb_friction_within_the_fitted_harmonics():
     # a model without such terms is fitted as before
     cubic = PreloadForceStateMapping("q - q^3 + q'").fit(sigs).result_
     assert not cubic.in_band
+
+
+def test_sampled_jump_widens_only_the_in_band_equality_test():
+    """sign(q')'s jump is sampled: the levels' in-band fits count the alias of its instant (one sample,
+    in phase with the motion); the same rows without the signals, and a model without the jump, are unchanged."""
+    from jointid.identify.adequacy import in_band_level_fits
+    from jointid.identify.fsm import own_fits
+    from jointid.identify.terms import library
+
+    sigs, lev = campaign(TRUTH["Coulomb + viscous"], 2004, 0.005, n_frequencies=5, n_time=1024)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fits = own_fits(library("q + q' + sign(q')"), sigs, None, True)
+        cubic = own_fits(library("q - q^3 + q'"), sigs, None, True)
+    _, _, th0, c0 = in_band_level_fits(fits, lev, ["omega1^2"])
+    _, _, th1, c1 = in_band_level_fits(fits, lev, ["omega1^2"], signals_list=sigs)
+    for a, b, x, y in zip(c0, c1, th0, th1):
+        assert np.array_equal(x, y) and b[0, 0] > 1.2 * a[0, 0]
+    # the added variance follows the sample interval: the same records at half the rate
+    half = [steady_state_signals(s.t[::2], s.force[::2], s.accel_measured[::2], frequency_hz=s.frequency_hz,
+                                 n_harmonics=5) for s in sigs]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fh = own_fits(library("q + q' + sign(q')"), half, None, True)
+    _, _, _, c2 = in_band_level_fits(fh, lev, ["omega1^2"], signals_list=half)
+    assert all(c[0, 0] - 2 * a[0, 0] > 2.0 * (b[0, 0] - a[0, 0]) for a, b, c in zip(c0, c1, c2))
+    _, _, _, d0 = in_band_level_fits(cubic, lev, signals_list=None)
+    _, _, _, d1 = in_band_level_fits(cubic, lev, signals_list=sigs)
+    assert all(np.array_equal(a, b) for a, b in zip(d0, d1))

@@ -431,12 +431,41 @@ def _drift(fits, levels, labels):
     return out
 
 
-def in_band_level_fits(fits, levels, names=None, weighting="noise") -> tuple:
+def _sampling_error_score(lib, theta, fit, whitening, signals):
+    """Whitened error of a record's rows that the sampling of a jump leaves (zero without one).
+
+    ``sign(q')`` makes the acceleration jump by ``2 f_c`` where the velocity changes sign; sampled
+    at ``dt``, the jump's instant is known to a sample only, and the harmonics fitted to the sampled
+    acceleration carry the alias of the square wave: its fundamental is shifted in phase by ``delta``
+    (uniform over one sample, ``omega dt / sqrt(12)`` standard deviation), an error ``(4 f_c / pi) delta``
+    in phase with the motion.  The motion is the acceleration's harmonics over ``-(k omega)^2``, so
+    the regression's residual carries it times ``omega1^2 / omega^2``: deterministic for a record,
+    random across records, and beyond the noise model's covariance (5e-5 of ``omega1^2`` at 128 samples
+    a period on a Coulomb joint near resonance).  Returned as one vector of the whitened rows'
+    space with that standard deviation.
+    """
+    j = [k for k, t in enumerate(lib) if t.name == "sign(q')"]
+    if not j or fit.scores is None or signals is None or len(signals.t) < 2:
+        return np.zeros(len(lib))
+    dt = float(np.median(np.diff(signals.t)))
+    w = signals.omega
+    stiff = [k for k, t in enumerate(lib) if t.name == "q"]
+    ratio = abs(theta[stiff[0]]) / w**2 if stiff else 1.0
+    sd = ratio * 4.0 * abs(theta[j[0]]) / np.pi * w * dt / np.sqrt(12.0)
+    cq = np.asarray(signals.displacement.coefficients, float)
+    c = np.zeros_like(cq)
+    c[1:3] = cq[1:3] / max(float(np.hypot(cq[1], cq[2])), 1e-300)  # unit first harmonic in phase with q
+    u = linalg.solve_triangular(whitening.R, fit.scores.phi_b @ c, trans="T", check_finite=False)
+    return sd * (whitening.W @ u)
+
+
+def in_band_level_fits(fits, levels, names=None, weighting="noise", signals_list=None) -> tuple:
     """Each force level's fit within the fitted harmonics: shared stiffness terms, own damping per record.
 
     The pooled fit of a level (:class:`~jointid.identify.fsm.PooledForceStateMapping`, default
     split of the terms) on the rows of :func:`~jointid.identify.model.in_band_rows`, with the
-    sandwich covariance of the records' score covariances.  Returns
+    sandwich covariance of the records' score covariances; with ``signals_list`` (the records' signals) the
+    covariance also counts the error the sampling of a jump leaves (:func:`_sampling_error_score`).  Returns
     ``(levels, names, values, covariances)`` of the shared parameters ``names`` (default all).
     """
     lib = library(list(fits[0].terms))
@@ -465,6 +494,9 @@ def in_band_level_fits(fits, levels, names=None, weighting="noise") -> tuple:
         V = np.zeros((P, P))
         for (D, _), E, i in zip(rows, Es, idx):
             V += E.T @ score_covariance(wh[i], fits[i].scores.covariance(E @ x), D) @ E
+            if signals_list is not None:
+                u = _sampling_error_score(lib, E @ x, fits[i], wh[i], signals_list[i])
+                V += np.outer(E.T @ (D.T @ u), E.T @ (D.T @ u))
         cov = sandwich(A.T @ A, V)
         out_lv.append(lv)
         out_th.append(x[:k][sel])
@@ -547,7 +579,7 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
         # parameters: each level gets the preload model itself (its laws, fitted to the level alone)
         per_level = _level_models(model, fits, signals_list, levels, constant, weighting, bool(truncated))
     elif truncated:
-        per_level = in_band_level_fits(fits, levels, constant, weighting)
+        per_level = in_band_level_fits(fits, levels, constant, weighting, signals_list)
     if per_level is None:
         eq, chi2, dof, p = level_equality(level_fits, constant)
     elif len(per_level[0]) >= 2 and per_level[1]:
