@@ -161,7 +161,7 @@ def test_cli_bad_input_exit_2(setup, tmp_path, capsys):
 def test_monte_carlo_z_scores_and_heldout(setup):
     """20 campaigns: the standard errors are calibrated (std z within 0.7-1.4, mean within 0.7).
 
-    About 55 s of one core (140 s wall on a loaded machine); with 7 dwells a level instead of 13
+    49 s of one core measured (user time; 130-145 s wall on a loaded machine); with 7 dwells a level instead of 13
     std z came out 0.90 (kt) and 0.75 (Fs), nearer the bound, so the full campaigns are kept.
     """
     _, model, clean = setup
