@@ -36,7 +36,7 @@ def measured_rows(model_path, seed=22, n_harmonics=21):
     for F in LEVELS:
         c = mt.frequency_response(70.0, 86.0, F, 7)
         a = np.array([abs(to_complex(mt.modal.shape(DOF) @ p.modal)[1]) for p in c.points])
-        fp, ap = located_peak(c.frequency_hz, a)
+        _, ap = located_peak(c.frequency_hz, a)
         above = c.frequency_hz[a > 0.5 * ap]
         freqs = np.round(np.linspace(above.min(), above.max(), 9), 3)
         prev = None
@@ -50,8 +50,8 @@ def measured_rows(model_path, seed=22, n_harmonics=21):
 
 
 def write_measured(model_path, out):
-    lines = ["# Measured first harmonics of the lap joint (synthetic: docs/formats.md, tests/lap_joint_measured.py). "
-             "x = a1 cos + b1 sin [m], se the standard error of a1 and of b1.",
+    lines = [("# Measured first harmonics of the lap joint (synthetic: docs/formats.md, tests/lap_joint_measured.py). "
+              "x = a1 cos + b1 sin [m], se the standard error of a1 and of b1."),
              "force_level,frequency_hz,dof,a1,b1,se"]
     lines += [f"{F!r},{f!r},{d},{a1:.6e},{b1:.6e},{se:.3e}" for F, f, d, a1, b1, se in measured_rows(model_path)]
     with open(out, "w", encoding="utf-8") as fh:

@@ -15,7 +15,12 @@ import math
 import numpy as np
 import pytest
 
-from jointid.app.update_joint import MeasuredFRF, _with_law, read_measured_frf, update_joint
+from jointid.app.update_joint import (
+    MeasuredFRF,
+    _with_law,
+    read_measured_frf,
+    update_joint,
+)
 from jointid.cli import main
 from jointid.errors import IdentificationError, ManifestError, RecordFileNotFoundError
 from jointid.io.structure_model import read_structure_model
@@ -96,7 +101,7 @@ def test_parameters_recovered_within_their_intervals(setup):
 
 
 def test_measured_csv_roundtrip_and_cli(setup, tmp_path, capsys):
-    folder, model, clean = setup
+    _, model, clean = setup
     meas = thin(campaign(clean, np.random.default_rng(2)))
     csv = write_csv(tmp_path / "measured.csv", meas)
     back = read_measured_frf(csv)
@@ -131,7 +136,7 @@ def test_bad_measured_file(tmp_path, text, what):
 
 
 def test_bad_update_requests(setup, tmp_path):
-    folder, model, clean = setup
+    _, model, clean = setup
     meas = campaign(clean, np.random.default_rng(3))
     with pytest.raises(ManifestError, match="no parameter.*K_T.*its parameters: kt, Fs"):
         update_joint(model, meas, parameters=["K_T"])
@@ -147,7 +152,7 @@ def test_bad_update_requests(setup, tmp_path):
 
 
 def test_cli_bad_input_exit_2(setup, tmp_path, capsys):
-    folder, model, _ = setup
+    _, model, _ = setup
     bad = tmp_path / "m.csv"
     bad.write_text("force_level,frequency_hz,dof,a1,b1,se\n1,20,x2,1e-3,0,-1\n")
     assert main(["update", str(model), str(bad), "--out", str(tmp_path / "o")]) == 2
@@ -177,7 +182,7 @@ def test_monte_carlo_z_scores_and_heldout(setup):
         assert abs(zk.mean()) < 0.7, (k, zk)
     # leave-one-level-out on one campaign: the top level predicted from the two lower ones
     res = update_joint(model, campaign(clean, np.random.default_rng(7)))
-    top = [h for h in res.heldout if h["force_level"] == max(LEVELS)][0]
+    top = next(h for h in res.heldout if h["force_level"] == max(LEVELS))
     print(res.report())
     assert abs(top["peak_frequency_error_pct"]) < 0.1
     assert abs(top["peak_amplitude_error_pct"]) < 2.0

@@ -39,13 +39,19 @@ from pathlib import Path
 import numpy as np
 import scipy.optimize
 
-from ..errors import ConvergenceError, IdentificationError, ManifestError, RecordFileNotFoundError, StructureError
+from ..errors import (
+    ConvergenceError,
+    IdentificationError,
+    ManifestError,
+    RecordFileNotFoundError,
+    StructureError,
+)
 from ..io.structure_model import read_structure_model
 from ..simulate.structure import JointElement, StructureModel, structure_from_spec
 from ..simulate.structure_hb import to_complex
 from .structure_predict import located_peak
 
-__all__ = ["MeasuredFRF", "JointUpdate", "read_measured_frf", "update_joint", "write_update"]
+__all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "write_update"]
 
 _COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
 Z95 = 1.959963984540054
@@ -93,7 +99,7 @@ def read_measured_frf(path) -> MeasuredFRF:
     vals = {c: [] for c in _COLUMNS if c != "dof"}
     dofs = []
     for (i, _), r in zip(kept[1:], rows):  # i: the line of the file
-        for c in vals:
+        for c, col in vals.items():
             try:
                 v = float(r[c])
             except (TypeError, ValueError):
@@ -102,7 +108,7 @@ def read_measured_frf(path) -> MeasuredFRF:
                 raise ManifestError(f"{p}: line {i}, column {c}: not finite")
             if c in ("force_level", "frequency_hz", "se") and v <= 0:
                 raise ManifestError(f"{p}: line {i}, column {c}: must be > 0, got {v:g}")
-            vals[c].append(v)
+            col.append(v)
         d = (r["dof"] or "").strip()
         if not d:
             raise ManifestError(f"{p}: line {i}, column dof: empty")
@@ -213,8 +219,8 @@ class JointUpdate:
 
     def report(self) -> str:
         L = [f"joint update: {self.joint} ({self.law}) in {self.model_path}",
-             f"measured: {self.measured_path}, {self.n_points} first-harmonic points, harmonic balance H = "
-             f"{self.n_harmonics}",
+             (f"measured: {self.measured_path}, {self.n_points} first-harmonic points, harmonic balance H = "
+              f"{self.n_harmonics}"),
              f"chi2/dof = {self.chi2:.4g} / {self.dof} = {self.chi2_per_dof:.3f}"
              + (" (covariance scaled by it)" if self.covariance_scaled else " (covariance not scaled: <= 1)"),
              "", f"{'parameter':<10} {'start':>12} {'estimate':>12} {'stderr':>11} {'95 % interval':>27}  unit"]
