@@ -21,7 +21,7 @@ process: the same points solved at fixed frequency, each from its neighbour on t
 by the condensed engine and by a full-DOF harmonic balance of the same 10-mode model (no
 condensation: 150 real unknowns, the same AFT kernel ``CondensedHB.aft``); the two solutions
 are compared.  Accuracy: the fundamental of a long DOP853 time integration started on
-chosen orbits (the check of tests/test_structure_hb.py) against the harmonic balance.
+chosen orbits (jointid.simulate.structure_timeint) against the harmonic balance.
 
 ``--write-case DIR`` writes the case for another harmonic-balance toolbox: ``case.npz``,
 Matrix Market files and ``case.json`` / ``README.md`` describing every field.
@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
-import sys
 import time
 import warnings
 
@@ -50,6 +49,7 @@ from jointid.modal.beam import SEED_GEOMETRY, seed_bolted_beam
 from jointid.rig.rig import SEED_RIG_DAMPING, SEED_RIG_JOINTS
 from jointid.simulate.structure import JointElement, LinearModel, StructureModel
 from jointid.simulate.structure_hb import to_complex, to_real
+from jointid.simulate.structure_timeint import integrate_structure
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -262,15 +262,9 @@ class FullDOFHB:
 
 
 def time_integration_check(st, point, n_periods):
-    """Largest relative difference of the fundamental at every FE DOF: DOP853 run (tests/test_structure_hb.py) vs HB."""
-    sys.path.insert(0, str(ROOT / "tests"))
-    try:
-        from test_structure_hb import integrate_fundamental
-    finally:
-        sys.path.remove(str(ROOT / "tests"))
-    X_hb = st.modal.shapes @ to_complex(point.modal)[:, 1]
-    X_ti = integrate_fundamental(st, point, n_periods=n_periods)
-    return float(np.max(np.abs(X_ti - X_hb)) / np.max(np.abs(X_hb)))
+    """Largest relative difference of the fundamental at every FE DOF: DOP853 run (jointid.simulate.structure_timeint)
+    vs HB."""
+    return integrate_structure(st, point, n_periods=n_periods).relative_difference
 
 
 def run(case, repeat=3, max_steps=2000, check_points=3, n_periods=10):

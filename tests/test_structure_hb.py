@@ -1,19 +1,19 @@
 """Multi-mode harmonic balance condensed on the joint DOFs (jointid.simulate.structure_hb).
 
-Checked against an independent long time integration of the same multi-mode model (scipy's
-DOP853 with each joint law's time-step protocol ``force(u, v, state)``), and against the
+Checked against an independent long time integration of the same multi-mode model
+(:mod:`jointid.simulate.structure_timeint`: scipy's DOP853 with each joint law's time-step
+protocol ``force(u, v, state)``), and against the
 rig's reduced beam solved with the rig's own Iwan implementation.
 """
 
 import numpy as np
 import pytest
-from scipy.integrate import DOP853
-from scipy.optimize import brentq
 
 from jointid.errors import StructureError
 from jointid.joints import DiscreteIwan, Jenkins, PolynomialLaw
 from jointid.simulate.structure import JointElement, LinearModel, ModalModel, StructureModel
 from jointid.simulate.structure_hb import CondensedHB, to_complex
+from jointid.simulate.structure_timeint import integrate_structure
 
 
 def chain_structure(force_scale=1.0):
@@ -35,67 +35,19 @@ def chain_structure(force_scale=1.0):
     return StructureModel(lin, joints, {"x1": 1.0})
 
 
-def _play_state(law, u_samples):
-    """Joint state at the end of two passes of a sampled period (the periodic orbit's state at t = 0)."""
-    s = law.initial_state()
-    for _ in range(2):
-        for uu in u_samples:
-            _, s = law.force(uu, 0.0, s)
-    return s
-
-
-def integrate_fundamental(st, point, n_periods=25, steps_per_period=60):
-    """First harmonic of every DOF over the last period of a DOP853 run started on the HB orbit."""
-    e = st.engine
-    w = point.omega
-    T = 2 * np.pi / w
-    Psi, pf, Om, ze = e.joint_shapes, e.force_shape, e.omega, e.zeta
-    F = point.force[2]
-    # joint states at t = 0 from the HB motion (as a run settled on that orbit would have them)
-    tt = np.linspace(0, T, 2049)[1:]
-    Ej = point.joint
-    kk = np.arange(1, (Ej.shape[1] - 1) // 2 + 1)
-    u_hb = Ej[:, :1] + Ej[:, 1::2] @ np.cos(np.outer(kk, w * tt)) + Ej[:, 2::2] @ np.sin(np.outer(kk, w * tt))
-    states = [_play_state(j.law, u_hb[i]) for i, j in enumerate(st.joints)]
-    km = e.k_model
-
-    def fnl(eta, etad, sts):
-        u = Psi @ eta
-        v = Psi @ etad
-        f = np.array([float(j.law.force(u[i], v[i], sts[i])[0]) for i, j in enumerate(st.joints)]) - km * u
-        return f
-
-    def rhs(t, y):
-        n = Om.size
-        eta, etad = y[:n], y[n:]
-        acc = pf * F * np.sin(w * t) - 2 * ze * Om * etad - Om**2 * eta - Psi.T @ fnl(eta, etad, states)
-        return np.concatenate([etad, acc])
-
-    m = point.modal
-    kk = np.arange(1, (m.shape[1] - 1) // 2 + 1)
-    y0 = np.concatenate([m[:, 0] + m[:, 1::2].sum(1), (m[:, 2::2] * kk * w).sum(1)])
-    solver = DOP853(rhs, 0.0, y0, n_periods * T, rtol=1e-11, atol=1e-14, max_step=T / steps_per_period)
-    n = Om.size
-    tg = np.linspace(n_periods * T - T, n_periods * T, 4097)[:-1]  # one period, uniform
-    etag = np.full((Om.size, tg.size), np.nan)
-    while solver.status == "running":
-        t_old, y_old = solver.t, solver.y.copy()
-        solver.step()
-        sol = solver.dense_output()
-        v_old, v_new = Psi @ y_old[n:], Psi @ solver.y[n:]
-        for i, j in enumerate(st.joints):
-            if v_old[i] * v_new[i] < 0:  # a reversal inside the step: pass through its extreme first
-                tr = brentq(lambda s: float(Psi[i] @ sol(s)[n:]), t_old, solver.t, xtol=1e-14)
-                _, states[i] = j.law.force(float(Psi[i] @ sol(tr)[:n]), 0.0, states[i])
-            _, states[i] = j.law.force(float(Psi[i] @ solver.y[:n]), float(v_new[i]), states[i])
-        inside = (tg >= t_old) & (tg <= solver.t)
-        if inside.any():  # the dense output of this step at the grid instants it covers
-            etag[:, inside] = sol(tg[inside])[:n]
-    assert np.all(np.isfinite(etag))
-    # fundamental by Fourier sums over exactly one period
-    c = 2 * np.mean(etag * np.cos(w * tg), axis=1)
-    s = 2 * np.mean(etag * np.sin(w * tg), axis=1)
-    return st.modal.shapes @ (c - 1j * s)
+def test_time_integration_from_an_hb_point_stays_on_it_and_sees_truncation():
+    """The package's integrator (DOP853, joint laws' time steps) started on a 7-harmonic orbit stays on it over
+    5 periods (every harmonic); on a 1-harmonic orbit of the same point it sees the cubic stop's truncation."""
+    st = chain_structure()
+    f = 1.1 * st.modal.frequencies_hz[0]
+    p = st.solve(f, 2.0, 7, n_time=256)
+    r = integrate_structure(st, p, n_periods=5, dofs=["x1", "x4"])
+    assert r.relative_difference < 1e-8 and r.periods == 5 and r.n_steps >= 5 * 60
+    assert r.response.shape == (2, 15) and r.joint.shape == p.joint.shape
+    assert np.max(np.abs(r.joint - p.joint)) < 1e-7 * np.abs(p.joint).max()
+    assert np.allclose(r.response, st.modal.shapes[[0, 3]] @ r.modal, rtol=0, atol=1e-15)
+    p1 = st.solve(f, 2.0, 1, n_time=256)
+    assert integrate_structure(st, p1, n_periods=5).relative_difference > 1e-4
 
 
 def test_condensed_hb_matches_linear_receptance_and_converges():
@@ -160,9 +112,7 @@ def test_hb_matches_long_time_integration_on_ten_frequencies_and_a_fold():
     errs = []
     for i in picks:
         p = curve.points[i]
-        X_hb = st.modal.shapes @ to_complex(p.modal)[:, 1]
-        X_ti = integrate_fundamental(st, p, n_periods=30)
-        errs.append(np.max(np.abs(X_ti - X_hb)) / np.max(np.abs(X_hb)))
+        errs.append(integrate_structure(st, p, n_periods=30).relative_difference)
     print("frequencies / f1:", np.round(curve.frequency_hz[picks] / f1, 4))
     print("relative fundamental differences:", np.array(errs))
     assert max(errs) < 1e-4

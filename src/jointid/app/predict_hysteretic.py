@@ -326,52 +326,30 @@ def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined):
 TIME_CHECK_RTOL = 1e-3
 
 
-def time_check(model: HystereticModel, Q, point, steps=128, periods=40) -> dict:
+def time_check(model: HystereticModel, Q, point, steps=60, periods=40, rtol=1e-9) -> dict:
     """The steady state ``point`` of the harmonic balance integrated in time: its ``q_max`` against the one of
-    the last of ``periods`` periods of a Runge-Kutta integration (``steps`` a period) of
-    ``q'' + c q' + k q + f_joint(q) = Q sin(omega t)`` started from the point's ``q(0)``, ``q'(0)`` and the
-    slider state its motion leaves (the law's ``force`` over two sampled periods from the virgin state); the
-    slider state is held over each step and updated at its end (the play operator, exact at the step ends).
-    Independent of the harmonic balance: no truncation to harmonics, no AFT."""
-    from ..signal.harmonics import HarmonicSeries, series_max_abs
+    the last of ``periods`` periods of the structure integrator
+    (:func:`jointid.simulate.structure_timeint.integrate_from_point`: DOP853, largest step ``T / steps``) on
+    the model's one-mode structure, ``q'' + c q' + k q + f_joint(q) = Q sin(omega t)``, started from the
+    point's ``q(0)``, ``q'(0)`` and the slider state its motion leaves; the slider state is held over each
+    step and updated at its end and at the reversals inside a step (the play operator, exact).  Independent
+    of the harmonic balance: no truncation to harmonics, no AFT.  ``q_max`` of the last period from its
+    first 63 harmonics; ``relative_difference_fundamental`` compares the fundamentals."""
+    from ..signal.harmonics import series_max_abs
+    from ..simulate.structure_timeint import integrate_from_point
 
-    law, k, c = model.law(), model.get("k"), model.get("c")
     w = float(point.omega)
-    qs = HarmonicSeries(w, np.asarray(point.joint[0], float))
-    vs = qs.derivative()
-    dt = 2 * np.pi / w / steps
     out = {"frequency_hz": w / (2 * np.pi), "q_max_harmonic_balance": float(series_max_abs(point.joint[0]))}
-    state = law.initial_state()
-    for u in np.tile(qs(dt * np.arange(steps)), 2):
-        _, state = law.force(u, 0.0, state)
-    q, v = float(qs(0.0)), float(vs(0.0))
-
-    def acc(t, qq, vv):
-        return Q * math.sin(w * t) - c * vv - k * qq - float(law.force(qq, vv, state)[0])
-
-    last = np.empty(steps)
-    with np.errstate(all="raise"):
-        try:
-            for n in range(periods * steps):
-                t = n * dt
-                a1 = acc(t, q, v)
-                a2 = acc(t + 0.5 * dt, q + 0.5 * dt * v, v + 0.5 * dt * a1)
-                a3 = acc(t + 0.5 * dt, q + 0.5 * dt * (v + 0.5 * dt * a1), v + 0.5 * dt * a2)
-                a4 = acc(t + dt, q + dt * (v + 0.5 * dt * a2), v + dt * a3)
-                q, v = (q + dt * v + dt * dt / 6 * (a1 + a2 + a3),
-                        v + dt / 6 * (a1 + 2 * a2 + 2 * a3 + a4))
-                _, state = law.force(q, v, state)
-                if n >= (periods - 1) * steps:
-                    last[n - (periods - 1) * steps] = q
-        except FloatingPointError as exc:
-            return {**out, "q_max_time_integration": None, "relative_difference": None, "error": str(exc)}
-    H = steps // 2 - 1
-    X = np.fft.rfft(last)[: H + 1] * (2.0 / steps)  # the last period (starting at a whole period)
-    coef = np.empty(2 * H + 1)
-    coef[0], coef[1::2], coef[2::2] = X[0].real / 2, X[1:].real, -X[1:].imag
-    qt = float(series_max_abs(coef))
+    try:
+        r = integrate_from_point(model.engine(), point, periods, steps, n_harmonics=63, rtol=rtol,
+                                 atol=1e-3 * rtol * out["q_max_harmonic_balance"])
+    except (ConvergenceError, FloatingPointError, ValueError) as exc:
+        return {**out, "q_max_time_integration": None, "relative_difference": None, "error": str(exc)}
+    qt = float(series_max_abs(r.modal[0]))
     return {**out, "q_max_time_integration": qt, "relative_difference": qt / out["q_max_harmonic_balance"] - 1.0,
-            "error": None, "steps_per_period": int(steps), "periods": int(periods)}
+            "error": None, "steps_per_period": int(steps), "periods": int(periods),
+            "relative_difference_fundamental": r.relative_difference, "method": "DOP853, play operator at reversals",
+            "n_steps": r.n_steps, "cost_s": r.cost_s}
 
 
 def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, widen=True, uncertainty=True) -> dict:
