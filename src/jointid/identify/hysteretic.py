@@ -504,7 +504,8 @@ class HystereticForceStateMapping:
         the law's sampled force in its nonlinear parameters (the element positions' piecewise
         dependence on the slip displacements) and projects it (Golub-Pereyra), at about the cost
         of one force evaluation; the others are ``least_squares``' finite differences (each
-        column one or two more evaluations), kept to compare.
+        column one or two more evaluations) with the earlier search (every start to convergence at
+        tolerances 1e-12, the sandwich's columns by central differences), kept to compare.
 
     Attributes
     ----------
@@ -680,11 +681,13 @@ class HystereticForceStateMapping:
                     starts.append(cands[i])
                 if len(starts) == N_STARTS:
                     break
-            search = {**opts, "xtol": SEARCH_TOL, "ftol": SEARCH_TOL, "gtol": SEARCH_TOL}
+            tol = SEARCH_TOL if exact else opts["xtol"]
+            search = {**opts, "xtol": tol, "ftol": tol, "gtol": tol}
             best = optimize.least_squares(coarse, starts[0], jac=coarse_jac, max_nfev=self.search_evaluations, **search)
             for s0 in starts[1:]:  # the others probed first; searched on only while they can compete
                 budget = self.search_evaluations
-                r = optimize.least_squares(coarse, s0, jac=coarse_jac, max_nfev=min(PROBE_EVALUATIONS, budget), **search)
+                probe = min(PROBE_EVALUATIONS, budget) if exact else budget
+                r = optimize.least_squares(coarse, s0, jac=coarse_jac, max_nfev=probe, **search)
                 if r.status == 0 and r.cost < PROBE_RATIO * best.cost and budget > r.nfev:
                     r = optimize.least_squares(coarse, np.clip(r.x, lo_a, hi_a), jac=coarse_jac,
                                                max_nfev=budget - r.nfev, **search)
