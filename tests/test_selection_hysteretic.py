@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from jointid.errors import ExtrapolationWarning, JointidWarning
+from jointid.identify.adequacy import check_adequacy
 from jointid.identify.heldout import PolynomialFirstHarmonic, level_errors
 from jointid.identify.hysteretic import first_harmonic_peak
 from jointid.identify.selection import Candidate, damping_law_flags, default_candidates, select_model
@@ -203,22 +204,36 @@ def test_peak_compared_on_the_same_branch_only_where_resolved():
             assert abs(lp.peak_frequency_error_percent) < 1e-9 and abs(lp.peak_amplitude_error_percent) < 1e-9
 
 
+#: The polynomial model of a generating family that the adequacy checks of ``jointid.identify.adequacy`` judge
+#: (the hysteretic families' laws are judged by their own fit's residual, not by these checks).
+CORRECT_MODEL = {c.name: c for c in default_candidates() if c.name in ("cubic", "Coulomb + viscous")}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("family", list(FAMILIES))
 def test_monte_carlo_selection_rate(family):
     """Many noisy campaigns per family (one clean time integration, independent noise): the generating family
-    (or its hysteretic equivalent) is selected in >= 90 % of them."""
+    (or its hysteretic equivalent) is selected in >= 90 % of them, and the generating polynomial family's model
+    is never called "does NOT hold" (Coulomb + viscous was, in every campaign, before the equality test across
+    levels counted the sampling of the acceleration's jump: omega1^2 off by 3e-5 at 128 samples a period)."""
     n = 10  # 20 per family measured once for docs/method.md; 10 keep the slow job's time
     data = clean_campaign(family, n_dwells=9)
     rng = np.random.default_rng(100)
-    names = []
+    names, verdicts = [], []
+    correct = CORRECT_MODEL.get(family)
     for _ in range(n):
         sigs, lev = noisy(data, rng)
         sel = _select(sigs, lev, fit_selected=False)
         names.append(sel.selected)
-    print(family, names)
+        if correct is not None:  # the generating family's own model: never "does NOT hold"
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", JointidWarning)
+                a = check_adequacy(sigs, lev, correct.terms, amplitude_laws=correct.laws)
+            verdicts.append(a.verdict if not a.adequate else None)
+    print(family, names, verdicts)
     ok = sum(nm in FAMILIES[family][3] for nm in names)
     assert ok >= math.ceil(0.9 * n), names
+    assert not any(verdicts), verdicts
 
 
 def test_selection_flags_reach_the_report_text():
