@@ -117,22 +117,6 @@ def test_mode_is_a_periodic_orbit_of_a_time_integration():
     assert np.linalg.norm(yT[2:] - y0[2:]) < 1e-7 * np.linalg.norm(y0[2:])
 
 
-def test_rig_backbone_agrees_with_the_rigs_own():
-    """The rig's reduced beam (4 modes, Iwan joint in rotation, 9 harmonics, 256 samples): the
-    condensed EPMC of mode 1 against the rig's uncondensed backbone (all modal harmonics as
-    unknowns): measured 1.4e-13 in frequency, 1.2e-11 in damping ratio at 120 N."""
-    from jointid.rig import seed_rig
-
-    rig = seed_rig(120)
-    amps = np.geomspace(1e-5, 1e-2, 6)
-    ref = rig.backbone(amps, n_harmonics=9, n_time=256)
-    bb = epmc_backbone(rig.model.engine(), 0, amps, n_harmonics=9, n_time=256)
-    np.testing.assert_allclose(bb.omega, ref.omega, rtol=1e-10)
-    np.testing.assert_allclose(bb.damping_ratio, ref.zeta, rtol=1e-8)
-    assert bb.frequency_hz[0] - bb.frequency_hz[-1] > 0.1  # the joint softens mode 1 over the range
-    assert bb.damping_ratio[-1] > 1.5 * bb.damping_ratio[0]
-
-
 def test_bad_input_names_the_problem():
     st = _two_mass_jenkins()
     with pytest.raises(StructureError, match="mode 2 out of range"):

@@ -144,7 +144,7 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     np.negative(D, out=D)
     D[:, np.arange(n), np.arange(n)] += ktot
     if centre:
-        k_never = (np.where(L[0] < 0, k, 0.0)).sum(axis=-1)  # the same elements at every sample
+        k_never = np.array([k[row < 0].sum() for row in L[0]])  # the same elements at every sample (summed as a subset)
         ub = u.reshape(nb, n)
         imax, imin = np.argmax(ub, axis=-1), np.argmin(ub, axis=-1)
         D[np.arange(nb), :, imax] -= 0.5 * k_never[:, None]
