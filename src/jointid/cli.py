@@ -213,6 +213,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: %(default)s)")
     p.add_argument("--no-uncertainty", action="store_true",
                    help="skip the standard errors of the peaks (two more solutions per model parameter)")
+    p.add_argument("--time-check", type=_int_in(0, 50), default=None, metavar="N",
+                   help="MODEL.toml: time-integrate the peaks of the N largest force levels (default: up to 3; 0: none)")
     p.add_argument("--quiet", action="store_true", help="no progress and no table on stdout")
 
     p = sub.add_parser("update", help="fit a structure model's joint law to measured first harmonics "
@@ -478,7 +480,7 @@ def _predict_structure(args) -> int:
     check_output_folder(args.out, "predict", inputs=(args.results.parent,))
     progress = None if args.quiet else (lambda line: print(f"jointid predict: {line}", file=sys.stderr, flush=True))
     res = predict_structure(args.results, force_levels=levels, frequency_range=args.frequency_range,
-                            n_harmonics=args.harmonics, progress=progress)
+                            n_harmonics=args.harmonics, progress=progress, time_check=args.time_check)
     write_structure_predictions(res, args.out, inputs=(args.results.parent,))
     if not args.quiet:
         print(res.report())

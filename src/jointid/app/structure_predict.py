@@ -30,6 +30,7 @@ from ..io.structure_model import read_structure_model
 from ..simulate.structure import structure_from_spec
 from ..simulate.nlmodes import epmc_backbone
 from ..simulate.structure_hb import default_n_time, to_complex
+from ..simulate.structure_timeint import integrate_structure
 
 __all__ = ["StructurePrediction", "predict_structure", "write_structure_predictions", "located_peak"]
 
@@ -71,6 +72,7 @@ class LevelPrediction:
     seconds_per_point: float = float("nan")
     error: str = ""
     modal_max: object = None  # largest first-harmonic amplitude of each modal coordinate on the curve
+    peak_point: object = None  # the curve's point of largest first-harmonic amplitude at the first response DOF
 
     def summary(self) -> dict:
         out = {
@@ -134,6 +136,7 @@ class StructurePrediction:
     settings: dict
     levels: list
     backbones: list = field(default_factory=list)
+    time_checks: list = field(default_factory=list)
 
     @property
     def failed(self) -> list:
@@ -142,7 +145,7 @@ class StructurePrediction:
     def summary(self) -> dict:
         return {"kind": "structure prediction", "source": self.source, "model": self.model,
                 "settings": self.settings, "predictions": [lv.summary() for lv in self.levels],
-                "backbones": [b.summary() for b in self.backbones]}
+                "backbones": [b.summary() for b in self.backbones], "time_checks": self.time_checks}
 
     def lines(self) -> list:
         out = [f"structure model {self.model['name']} ({self.source}): {self.model['n_modes']} modes, "
@@ -174,6 +177,15 @@ class StructurePrediction:
                            f"{1e3 * b.seconds_per_point:.3g} ms per point")
             if b.error:
                 out.append(head + f"FAILED: {b.error}")
+        if self.time_checks:
+            done = [c for c in self.time_checks if not c["error"]]
+            txt = ", ".join(f"{c['relative_difference']:.1e} (F = {c['force_level']:g} at {c['frequency_hz']:.6g} Hz)"
+                            for c in done)
+            bad = [c for c in self.time_checks if c["error"]]
+            out.append(f"time integration from the peaks ({self.time_checks[0]['periods']} periods, DOP853): "
+                       f"fundamental at the response DOFs differs from the harmonic balance by {txt or 'none'}"
+                       + "".join(f"; F = {c['force_level']:g}: FAILED: {c['error']}" for c in bad)
+                       + f"; {sum(c['cost_s'] for c in self.time_checks):.3g} s")
         return out
 
     def report(self) -> str:
@@ -209,12 +221,40 @@ def _refined_peak(st, pts, folds, amp, dof, F, H, N):
     return float(r.x / (2 * np.pi)), float(-r.fun)
 
 
+#: Periods of each time-integration check (started on the harmonic-balance orbit; :func:`_time_checks`).
+TIME_CHECK_PERIODS = 10
+
+
+def _time_checks(st, levels, response, n_points, periods=TIME_CHECK_PERIODS) -> list:
+    """The peak point of the ``n_points`` largest force levels integrated in time
+    (:func:`jointid.simulate.structure_timeint.integrate_structure`, from the orbit, ``periods`` periods):
+    the relative difference of the fundamental at the response DOFs, the periods and the cost."""
+    out = []
+    picks = sorted((lv for lv in levels if lv.peak_point is not None), key=lambda lv: -lv.force_level)
+    for lv in picks[:max(int(n_points), 0)]:
+        p = lv.peak_point
+        row = {"frequency_hz": float(p.frequency_hz), "force_level": lv.force_level, "relative_difference": None,
+               "periods": int(periods), "n_steps": None, "cost_s": 0.0, "error": ""}
+        t0 = time.process_time()
+        try:
+            r = integrate_structure(st, p, dofs=response, n_periods=periods, rtol=1e-7,
+                                    atol=1e-10 * max(float(np.abs(p.modal).max()), 1e-300))
+            row.update(relative_difference=r.relative_difference, n_steps=r.n_steps)
+        except ConvergenceError as exc:
+            row["error"] = str(exc)
+        row["cost_s"] = time.process_time() - t0
+        out.append(row)
+    return out
+
+
 def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_harmonics=None, n_time=None,
-                      progress=None) -> StructurePrediction:
+                      progress=None, time_check=None) -> StructurePrediction:
     """Frequency responses of the structure in ``model_toml`` at each force level.
 
     Arguments left at None come from the file's ``[predict]`` table (the band and the force
-    levels are then required there; harmonics default 5).
+    levels are then required there; harmonics default 5).  ``time_check``: the number of force
+    levels (the largest first) whose peak point is checked by a time integration (default: up to 3;
+    0: none).
     """
     spec = read_structure_model(model_toml)
     pred = spec.predict
@@ -261,6 +301,7 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
             if refined is not None:
                 fpk, apk = refined
             lv.peaks[d] = {"peak_frequency_hz": fpk, "peak_amplitude": apk, "located": located}
+        lv.peak_point = pts[int(np.argmax(lv.amplitude[response[0]]))] if response else None
         lv.modal_max = np.abs(to_complex(np.array([p.modal for p in pts]))[..., 1]).max(axis=0)
         lv.folds_hz = [float(pts[i].frequency_hz) for i in curve.folds]
         lv.n_points = len(pts)
@@ -277,7 +318,13 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
     if progress:
         for b in backbones:
             progress(f"nonlinear mode {b.mode}: {len(b.amplitude)} points" + (f"; {b.error}" if b.error else ""))
-    return StructurePrediction(spec.path, model, settings, out, backbones)
+    n_checks = min(3, len(out)) if time_check is None else int(time_check)
+    settings["time_check_points"] = n_checks
+    checks = _time_checks(st, out, response, n_checks)
+    if progress and checks:
+        progress(f"time integration from {len(checks)} peak(s): fundamental within "
+                 f"{max((c['relative_difference'] or 0.0) for c in checks):.1e}")
+    return StructurePrediction(spec.path, model, settings, out, backbones, checks)
 
 
 def _backbone_plan(st, band, levels):
