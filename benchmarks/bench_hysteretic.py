@@ -54,7 +54,7 @@ def main():
             dv = np.max(np.abs(ex.values - fd.values) / fd.stderr)
             ds = np.max(np.abs(ex.stderr / fd.stderr - 1))
             print(f"{law:>14} {label:>9}: 3-point {t_fd:6.2f} s, exact {t_ex:6.2f} s, ratio {t_fd / t_ex:5.2f}x; "
-                  f"max |d value| {dv:.2g} SE, max |d SE| {ds:.1%}; residual rms {fd.residual_rms:.6f} -> "
+                  f"max |d value| {dv:.2g} SE, max |d SE| {ds:.2g} (relative); residual rms {fd.residual_rms:.6f} -> "
                   f"{ex.residual_rms:.6f}")
     print(f"all fits: 3-point {total['3-point']:.2f} s, exact {total['exact']:.2f} s, "
           f"ratio {total['3-point'] / total['exact']:.2f}x")
