@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from jointid.app.paper_example import PAPER, paper_config
-from jointid.app.study import StudyPlan, run_campaign, study_statistics
+from jointid.app.study import StudyPlan, run_campaign, run_study, study_statistics
 from jointid.app.synthesis import load_simulation_config, simulate_campaign
 from jointid.app.workflow import identify_campaign
 from jointid.errors import IdentificationError
@@ -59,9 +59,14 @@ def _complete(s):
     return s["n_missing"] == 0
 
 
-def _calibration(campaigns, seed, **kw):
+def _calibration(campaigns, seed, out=None, **kw):
+    """Statistics of ``campaigns`` random campaigns: in this process, or (``out``) as a study on two local
+    workers (the same lines byte for byte, tests/test_dask_study.py) written to ``out``."""
     plan = _plan(campaigns, seed, **kw)
-    lines = [run_campaign(plan, i) for i in range(campaigns)]
+    if out is None:
+        lines = [run_campaign(plan, i) for i in range(campaigns)]
+    else:
+        lines = list(run_study(plan, out, jobs=2, report=False).campaigns)
     assert all(line["status"] == "ok" for line in lines), [line["error"] for line in lines if line["error"]]
     return {s["parameter"]: s for s in study_statistics(lines)}
 
@@ -78,13 +83,13 @@ def test_calibration_small_monte_carlo():
 
 
 @pytest.mark.slow
-def test_calibration_monte_carlo_400_campaigns():
+def test_calibration_monte_carlo_400_campaigns(tmp_path):
     """400 random campaigns: std(z) within 0.8-1.25 and 95 % intervals that cover the truth in 92-98 %.
 
     A coverage count over n campaigns scatters by sqrt(0.95 * 0.05 / n): 1.5 points at 200, which
     is half the width of the 92-98 % band; 400 campaigns bring it to 1.1 points.
     """
-    stats = _calibration(400, 2026, n_frequencies=(5, 9), periods=(8, 30))
+    stats = _calibration(400, 2026, tmp_path / "study", n_frequencies=(5, 9), periods=(8, 30))
     for name in CALIBRATED:
         s = stats[name]
         assert _complete(s), (name, s["n_missing"])
