@@ -2,7 +2,7 @@
 
 Exit codes: 0 success; 1 the run finished with flagged results: some records failed or were
 flagged by the plausibility checks, or a model does not fit its data (``results.json``
-``fit_checks``); 2 bad input (invalid arguments, manifest, configuration, record file
+``fit_checks``), or (identify) the model used for a preload does not hold (``adequacy``); 2 bad input (invalid arguments, manifest, configuration, record file
 or output folder), checked before the work starts where it can be; 3 an unexpected internal
 error; 4 incomplete: the dask cluster (its scheduler) was lost mid-run, run the same command
 again (a study resumes from the campaigns done); 130 interrupted (Ctrl-C), with the previous
@@ -342,7 +342,12 @@ def _identify_console(args, result) -> int:
     broadband = problem_lines(result)  # broadband and ring-down records flagged or not usable
     for line in broadband:
         print(line, file=sys.stderr)
-    return EXIT_PARTIAL if result.failed or result.flagged or broadband or misfit else EXIT_OK
+    # the model used for a preload (the selected one under --terms auto) does not hold: also when quiet
+    inadequate = [f"preload {a.get('preload')}: the {a.get('model')} model used does NOT hold: {a.get('verdict')}"
+                  for a in summary.get("adequacy") or [] if isinstance(a, dict) and a.get("adequate") is False]
+    for line in inadequate:
+        print(line, file=sys.stderr)
+    return EXIT_PARTIAL if result.failed or result.flagged or broadband or misfit or inadequate else EXIT_OK
 
 
 def _study(args) -> int:

@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 from ..errors import IdentificationError, JointidWarning
 from ..identify.terms import SEED_TERMS, library
@@ -38,9 +39,12 @@ def _preload_records(records, settings, preload):
 def campaign_adequacy(result) -> dict:
     """:class:`~jointid.identify.adequacy.AdequacyResult` per preload (``None`` where it cannot be assessed).
 
-    A failing check never loses the campaign: its reason is kept as ``adequacy_errors``.
+    A failing check never loses the campaign: its reason is kept as ``adequacy_errors``.  When the
+    preload's selection picked a hysteretic law, its adequacy is that of the hysteretic fit
+    (:func:`~jointid.identify.adequacy.assess_hysteretic`) and the polynomial stand-in's is kept
+    under its ``stand_in`` (results.json ``stand_in_adequacy``), never as the selected model's verdict.
     """
-    from ..identify.adequacy import assess_preload
+    from ..identify.adequacy import assess_hysteretic, assess_preload
     from ..identify.fsm import own_fits
 
     out, errors = {}, {}
@@ -54,9 +58,13 @@ def campaign_adequacy(result) -> dict:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", JointidWarning)
                     fits = own_fits(library(list(model.terms)), sigs, None, True)
-            out[preload] = assess_preload(model, fits if model is not None else [], sigs,
-                                          [o.spec.force_level for o in recs], level_fits,
-                                          [o.spec.index for o in recs], result.settings.weighting, preload)
+            levels, labels = [o.spec.force_level for o in recs], [o.spec.index for o in recs]
+            out[preload] = assess_preload(model, fits if model is not None else [], sigs, levels, level_fits,
+                                          labels, result.settings.weighting, preload)
+            sel = (getattr(result, "selections", None) or {}).get(preload)
+            hyst = getattr(sel, "hysteretic_model", None)
+            if hyst is not None:  # the selected law is judged on its own fit; the stand-in's verdict kept apart
+                out[preload] = replace(assess_hysteretic(hyst, sigs, levels, labels, preload), stand_in=out[preload])
         except (IdentificationError, ValueError, ArithmeticError) as exc:
             out[preload] = None
             errors[preload] = f"preload {preload}: adequacy not assessed: {exc}"

@@ -45,7 +45,7 @@ from .terms import library
 from .uncertainty import sandwich, scaled_inverse
 
 __all__ = ["ParameterEquality", "RecordAdequacy", "AdequacyResult", "level_equality", "record_adequacy",
-           "assess_preload", "check_adequacy", "P_LIMIT"]
+           "assess_preload", "assess_hysteretic", "check_adequacy", "P_LIMIT"]
 
 #: p-value below which a check says the model does not hold.
 P_LIMIT = 1e-3
@@ -177,6 +177,9 @@ class AdequacyResult:
     drift: dict = field(default_factory=dict)
     adequate: bool = True
     messages: tuple = ()
+    #: With a hysteretic pick: the adequacy of its polynomial stand-in (an AdequacyResult), kept
+    #: apart; it is never the selected model's verdict.
+    stand_in: object = field(default=None, repr=False)
 
     @property
     def verdict(self) -> str:
@@ -234,6 +237,7 @@ class AdequacyResult:
             "explained_harmonics_min": num(ehmin),
             "harmonic_residual_to_noise": num(self.harmonic_residual_to_noise),
             "records": [r.summary() for r in self.records],
+            **({} if self.stand_in is None else {"stand_in_adequacy": self.stand_in.summary()}),
         }
 
     def report(self) -> str:
@@ -258,6 +262,10 @@ class AdequacyResult:
         if self.outliers:
             lines.append(f"  outlier records: {', '.join(str(o) for o in self.outliers)}")
         lines += [f"  {m}" for m in self.messages]
+        if self.stand_in is not None:
+            s = self.stand_in
+            v = "not assessed" if s.adequate is None else "holds" if s.adequate else "does NOT hold"
+            lines.append(f"  polynomial stand-in (re-prediction only, not the selected model): {s.model_name}: {v}")
         return "\n".join(lines)
 
     def _repr_html_(self):
@@ -628,6 +636,49 @@ def assess_preload(model, fits, signals_list, levels, level_fits, labels=None, w
         else:
             msgs.append(f"equality across force levels not tested: {why}")
     return AdequacyResult(preload, terms, name, eq, chi2, dof, p, recs, drift, adequate, tuple(msgs))
+
+
+def assess_hysteretic(hfit, signals_list, levels, labels=None, preload=None) -> AdequacyResult:
+    """Adequacy of a hysteretic law fitted over a preload's records (a
+    :class:`~jointid.identify.hysteretic.HystereticFit`), on the records it was fitted to.
+
+    Per record: the law's restoring force over the record's period projected on its harmonics,
+    against the measured ``Q - q''`` (the quantities the hysteretic fit weighs, whitened by the
+    record's noise); ``misfit`` is the rms of that residual over the noise (1 = explained to the
+    noise, mean square as there), the explained fractions as in :func:`record_adequacy`.  The median misfit above
+    ``MISFIT_LIMIT`` says the law does not hold.  The law is one fit over all levels (no per-level
+    fits), so equality across force levels is not assessed.
+    """
+    from .hysteretic import _basis, _prepare
+
+    recs, n = [], 512
+    th = 2 * np.pi * np.arange(n) / n
+    labels = list(labels) if labels is not None else list(range(len(signals_list)))
+    for i, (sig, lv, lab) in enumerate(zip(signals_list, levels, labels)):
+        r = _prepare(sig, i)
+        E = _basis(th, 1.0, r.H)
+        f = hfit.restoring_force(E @ r.d, E @ r.v)
+        m = (E[:, 1:].T * (2.0 / n)) @ f  # harmonics 1..H of the model's force
+        w = 1.0 / np.sqrt(r.s_force**2 + r.s_accel**2)
+        res, y = w * (r.U @ (r.y - m)), w * (r.U @ r.y)
+        rows = res.size
+        e_h, e_hr = float(y[2:] @ y[2:]), float(res[2:] @ res[2:])  # upper-triangular U: rows 2.. are harmonics >= 2
+        energies = (float(y @ y), float(res @ res), e_h, e_hr, float(max(rows - 2, 0)))
+        recs.append(RecordAdequacy(lab, lv, float(r.q_max), float(res @ res) / max(rows, 1),
+                                   1.0 - energies[1] / energies[0] if energies[0] > 0 else float("nan"),
+                                   1.0 - e_hr / e_h if e_h > 0 else float("nan"),
+                                   e_h / energies[0] if energies[0] > 0 else float("nan"), energies=energies))
+    name = f"{hfit.law_name} (hysteretic)"
+    mis = np.array([r.misfit for r in recs], float)
+    med = float(np.median(mis[np.isfinite(mis)])) if np.any(np.isfinite(mis)) else float("nan")
+    msgs, adequate = [], None if not recs else True
+    if med > MISFIT_LIMIT:
+        adequate = False
+        msgs.append(f"the median record leaves a residual {med:.3g} times what the noise explains: the {name} law "
+                    f"misses a part of the restoring force at this preload")
+    msgs.append("equality across force levels: not assessed (the law is one fit over all levels, no per-level fits)")
+    return AdequacyResult(preload, ("k q", "c q'", f"{hfit.law_name}(q)"), name, (), float("nan"), 0, float("nan"), tuple(recs), {},
+                          adequate, tuple(msgs))
 
 
 def check_adequacy(signals_list, levels, terms="q + -q^3 + q'", *, amplitude_laws=None, damping_order=2,

@@ -260,7 +260,13 @@ def model_choice_lines(summary) -> list:
         # the rule that decided (held-out prediction since it exists; older results: the information criterion)
         why = ("the simplest model predicting the held-out force levels within noise of the best"
                if sel.get("decided_by") == "held-out prediction" else f"lowest {crit}")
-        if _same_model(m, chosen):
+        if sel.get("hysteretic_model") and adq and isinstance(adq.get("stand_in_adequacy"), dict):
+            st = adq["stand_in_adequacy"]
+            st_v = "not assessed" if st.get("adequate") is None else "holds" if st.get("adequate") else "does not hold"
+            out.append(f"Preload {p}: the data select the {name} model ({why}{behind}); adequacy of its own fit: "
+                       f"{verdict}. The preload model shown below ({fitted}) is its polynomial stand-in for "
+                       f"re-prediction only ({st.get('model')}: {st_v}; not the selected model's verdict).")
+        elif _same_model(m, chosen):
             out.append(f"Preload {p}: the data select the {name} model, the preload model shown below ({why}{behind})" + (f"; adequacy: {verdict}." if verdict else "."))
         elif holds is False:
             out.append(f"Preload {p}: believe the {name} model: the data select it ({why}{behind}) and the "
@@ -384,7 +390,7 @@ def _verdict(d):
 
 _ADEQUACY_KEYS = {"preload", "terms", "model", "adequate", "verdict", "messages", "level_equality", "misfit_median",
                   "outliers", "drift", "explained_force", "explained_force_min", "explained_harmonics",
-                  "explained_harmonics_min", "harmonic_residual_to_noise", "records"}
+                  "explained_harmonics_min", "harmonic_residual_to_noise", "records", "stand_in_adequacy"}
 
 
 def _ratio(x) -> float | None:
@@ -404,6 +410,8 @@ def adequacy_rows(summary) -> list:
         eq = it.get("level_equality") or {}
         eq_txt = (f"chi² {format_value(eq.get('chi2'), 3)} on {eq.get('dof')} dof, {_p_text(eq.get('p_value'))}"
                   if eq.get("dof") else "–")
+        if not eq.get("dof") and "(hysteretic)" in str(it.get("model")):
+            eq_txt = "not assessed (one law fitted over all levels)"
         ef, efmin = it.get("explained_force"), it.get("explained_force_min")
         hr, hrmax = _ratio(it.get("explained_harmonics")), _ratio(it.get("explained_harmonics_min"))
         verdict = _verdict(it) or "–"
@@ -423,6 +431,12 @@ def adequacy_rows(summary) -> list:
         if other:
             row["other"] = other[:400]
         rows.append(row)
+        stand_in = it.get("stand_in_adequacy")
+        if isinstance(stand_in, dict):  # a hysteretic pick: its polynomial stand-in's checks, labelled as such
+            for r in adequacy_rows({"adequacy": [stand_in]}):
+                r["model"] = f"{r['model']} (polynomial stand-in for re-prediction, not the selected model)"
+                r["verdict"] = f"stand-in only, not the selected model's verdict: {r['verdict']}"
+                rows.append(r)
     return rows
 
 

@@ -95,7 +95,7 @@ def campaign_report(result) -> str:
         out.append("Model adequacy per preload:")
         for r in adq:
             out.append(f"  preload {r['preload']}, {r['model']}: {r['verdict']}")
-            if r.get("equality across force levels", "–") != "–":
+            if r.get("equality across force levels", "–") != "–" or r.get("median record misfit [× noise]", "–") != "–":
                 out.append(f"    equality across force levels: {r['equality across force levels']}; median record "
                            f"misfit {r['median record misfit [× noise]']} x the noise; restoring force explained "
                            f"{r['restoring force explained [%] (lowest record)']} %")
