@@ -52,6 +52,21 @@ def test_jenkins_law_holds_on_its_own_fit_and_a_cubic_does_not(jenkins_data):
     assert cubic.adequate is False, cubic.report()
 
 
+def test_level_equality_ignores_differences_below_the_arithmetic():
+    """Noise-free records: differences of 1e-16 relative with standard errors of 1e-18 are not a change
+    (they made the exact cubic 'does NOT hold', now an exit status); 1 % at 0.1 % standard errors is."""
+    from jointid.identify.adequacy import _equality
+
+    th = [np.array([28900.0, 4.0e9]), np.array([28900.0 * (1 + 7e-16), 4.0e9 * (1 + 1.5e-11)])]
+    exact = [np.diag((1e-18 * t) ** 2) for t in th]
+    eq, chi2, dof, p = _equality((1.0, 2.0), ("omega1^2", "k3"), th, exact)
+    assert dof == 2 and p > 0.5 and not any(e.differs for e in eq), (chi2, p)
+    th2 = [th[0], th[0] * np.array([1.01, 1.0])]
+    noisy_cov = [np.diag((1e-3 * t) ** 2) for t in th2]
+    eq, chi2, dof, p = _equality((1.0, 2.0), ("omega1^2", "k3"), th2, noisy_cov)
+    assert p < 1e-6 and [e.differs for e in eq] == [True, False]
+
+
 def test_stand_in_verdict_is_labelled_as_the_stand_ins():
     """Report rows and the model-choice sentence never show the stand-in's verdict as the selected model's."""
     from jointid.report.summary import adequacy_rows, model_choice_lines, summary_lines

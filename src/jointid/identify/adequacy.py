@@ -55,6 +55,9 @@ OUTLIER_FACTOR = 5.0
 OUTLIER_MEDIAN_LIMIT = 3.0
 #: A median record misfit above this (the noise gives about 1) says terms are missing.
 MISFIT_LIMIT = 10.0
+#: Relative resolution of a parameter's value (about the square root of the float64 epsilon): the
+#: equality test across levels does not call smaller relative differences a change.
+NUMERICAL_RESOLUTION = 1e-8
 #: |t| of the order trend of the own omega1 above which a group drifts.
 DRIFT_T = 5.0
 
@@ -308,7 +311,14 @@ def level_equality(level_fits, names=None) -> tuple:
 
 
 def _equality(levels, names, th, covs):
-    """The equality tests of :func:`level_equality` from each level's values and covariance."""
+    """The equality tests of :func:`level_equality` from each level's values and covariance.
+
+    Each variance gets a floor of ``NUMERICAL_RESOLUTION`` relative to the parameter's largest
+    value: below it a difference is the arithmetic's, not the data's (noise-free records give
+    standard errors of 1e-16 relative, and differences of that order would otherwise be "p < 1e-6").
+    """
+    floor = np.diag((NUMERICAL_RESOLUTION * np.max(np.abs(np.array(th, float)), axis=0)) ** 2)
+    covs = [np.asarray(c, float) + floor for c in covs]
     Ci = [scaled_inverse(c) for c in covs]
     S = sum(Ci)
     bar = scaled_inverse(S) @ sum(c @ t for c, t in zip(Ci, th))
