@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_hysteretic_fsm import JENKINS_LEVELS, jenkins_data, noisy  # noqa: F401 (module fixture)
+from test_hysteretic_fsm import JENKINS, JENKINS_LEVELS, campaign, noisy
 from test_predict_hysteretic import _write_campaign
 from test_selection_hysteretic import clean_campaign
 
@@ -22,6 +22,11 @@ from jointid.cli import main
 from jointid.identify.adequacy import MISFIT_LIMIT, assess_hysteretic, check_adequacy
 from jointid.identify.hysteretic import HystereticForceStateMapping
 from jointid.joints import Jenkins
+
+
+@pytest.fixture(scope="module")
+def jenkins_data():
+    return campaign(JENKINS, JENKINS_LEVELS, 0.06)
 
 
 def _levels(data):
