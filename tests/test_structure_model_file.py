@@ -127,6 +127,10 @@ dofs = ["tip"]
     ('dofs = { "B.w10" = 1.0 }', 'dofs = { "B.w10" = "one" }', ManifestError, "force.dofs.B.w10"),
     ('n_modes = 12', 'n_modes = 100', ManifestError, "model.n_modes"),
     ('force_levels = [0.5, 2.0, 5.0]', 'force_levels = [0.5, 0.0]', ManifestError, r"predict.force_levels\[1\]"),
+    ('dofs = ["A.w0", "B.w10"] ', 'dofs = ["A.w0", "B.w10"]\nunits = { "B.r0" = "rad" } ', ManifestError,
+     r"response.units.B.r0.*not one of the response DOFs"),
+    ('dofs = ["A.w0", "B.w10"] ', 'dofs = ["A.w0", "B.w10"]\nunits = { "A.w0" = 3 } ', ManifestError,
+     r"response.units.*DOF name -> unit"),
 ])
 def test_bad_model_files_name_the_file_and_key(lap, old, new, error, match):
     text = lap.read_text(encoding="utf-8")
@@ -186,6 +190,7 @@ def test_predict_command_on_the_documented_model(lap, tmp_path, capsys):
     assert [p["force_level"] for p in res["predictions"]] == [0.5, 5.0]
     assert (out / "figures" / "structure_frf.png").is_file() and (out / "report.txt").is_file()
     lo, hi = (p["peaks"]["B.w10"] for p in res["predictions"])
+    assert res["model"]["response_units"] == {"A.w0": "m", "B.w10": "m"}  # translations unless declared
     # the joint slips more at 5 N: the peak moves down from the stuck joint's 84.19 Hz, and further at 5 N
     assert 72 < hi["peak_frequency_hz"] < lo["peak_frequency_hz"] < 84.19
     for p in res["predictions"]:

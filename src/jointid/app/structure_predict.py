@@ -147,6 +147,10 @@ class StructurePrediction:
                 "settings": self.settings, "predictions": [lv.summary() for lv in self.levels],
                 "backbones": [b.summary() for b in self.backbones], "time_checks": self.time_checks}
 
+    def unit(self, dof) -> str:
+        """Unit of a response DOF's motion (``[response] units`` of the model file; m unless declared)."""
+        return (self.model.get("response_units") or {}).get(dof, "m")
+
     def lines(self) -> list:
         out = [f"structure model {self.model['name']} ({self.source}): {self.model['n_modes']} modes, "
                f"{len(self.model['joints'])} joint element(s); harmonics 0..{self.settings['n_harmonics']}, "
@@ -155,10 +159,10 @@ class StructurePrediction:
             if lv.error:
                 out.append(f"F = {lv.force_level:g}: FAILED: {lv.error}")
                 continue
-            pk = "; ".join(f"{d} peak {p['peak_amplitude']:.4g} m at {p['peak_frequency_hz']:.6g} Hz"
+            pk = "; ".join(f"{d} peak {p['peak_amplitude']:.4g} {self.unit(d)} at {p['peak_frequency_hz']:.6g} Hz"
                            for d, p in lv.peaks.items())
-            folds = ", ".join(f"{f:.6g}" for f in lv.folds_hz) or "none"
-            out.append(f"F = {lv.force_level:g}: {pk}; folds at {folds} Hz; {lv.n_points} points, "
+            folds = f"folds at {', '.join(f'{f:.6g}' for f in lv.folds_hz)} Hz" if lv.folds_hz else "no fold"
+            out.append(f"F = {lv.force_level:g}: {pk}; {folds}; {lv.n_points} points, "
                        f"{lv.newton_iterations_mean:.2g} Newton iterations per point, residual <= "
                        f"{lv.max_residual:.1e}, {1e3 * lv.seconds_per_point:.3g} ms per point")
         skipped = self.settings.get("backbone_modes_not_excited")
@@ -274,7 +278,8 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
              "damping_ratios": [float(x) for x in st.modal.zeta],
              "joints": [{"name": j.name, "dofs": [j.dof_a, j.dof_b], "k_model": j.k_model, "law": j.law.summary()}
                         for j in spec.joints],
-             "force": dict(spec.force), "response": list(response)}
+             "force": dict(spec.force), "response": list(response),
+             "response_units": {d: spec.response_units.get(d, "m") for d in response}}
     settings = {"frequency_range_hz": [float(band[0]), float(band[1])], "n_harmonics": H, "n_time": N,
                 "force_levels": [float(x) for x in levels]}
     out = []
@@ -414,7 +419,7 @@ def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> 
                             label=f"backbone, mode {b.mode}")
             ax.set_ylim(bottom=0.0, top=1.1 * max([max(lv.amplitude[d]) for lv in result.levels if not lv.error]
                                                   or [1.0]))
-            ax.set_ylabel(f"|{d}| first harmonic")
+            ax.set_ylabel(f"|{d}| first harmonic [{result.unit(d)}]")
             ax.grid(alpha=0.3)
         axes[-1, 0].set_xlabel("frequency [Hz]")
         axes[0, 0].legend(fontsize=8)
@@ -432,7 +437,7 @@ def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> 
             ax1.set_ylabel("backbone frequency [Hz]")
             ax2.set_ylabel("damping ratio")
             for ax in (ax1, ax2):
-                ax.set_xlabel("modal amplitude (first harmonic)")
+                ax.set_xlabel("modal amplitude, first harmonic [kg$^{1/2}$ m]")  # mass-normalised modes
                 ax.grid(alpha=0.3)
             ax1.legend(fontsize=8)
             fig.suptitle(f"{result.model['name']}: nonlinear modes (extended periodic motion concept)", fontsize=10)

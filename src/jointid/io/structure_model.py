@@ -77,6 +77,7 @@ class StructureSpec:
     rayleigh: object = None
     n_modes: int | None = None
     predict: dict = field(default_factory=dict)
+    response_units: dict = field(default_factory=dict)  # response DOF -> unit of its motion ("m" unless declared)
 
 
 def _err(path, key, msg):
@@ -334,11 +335,18 @@ def read_structure_model(path) -> StructureSpec:
     if not isinstance(fd, dict) or not fd:
         raise _err(path, "force.dofs", "expected a table DOF name -> weight")
     fw = {dof("force.dofs", k): float(_number(path, f"force.dofs.{k}", v)) for k, v in fd.items()}
-    resp = _table(path, doc, "response", {"dofs"}, required=True)
+    resp = _table(path, doc, "response", {"dofs", "units"}, required=True)
     rd = resp.get("dofs")
     if not isinstance(rd, list) or not rd or not all(isinstance(s, str) for s in rd):
         raise _err(path, "response.dofs", "expected a list of DOF names")
     response = tuple(dof("response.dofs", s) for s in rd)
+    ru = resp.get("units", {})
+    if not isinstance(ru, dict) or not all(isinstance(u, str) and u.strip() for u in ru.values()):
+        raise _err(path, "response.units", "expected a table DOF name -> unit, e.g. { \"B.r0\" = \"rad\" }")
+    for k in ru:
+        if k not in response:
+            raise _err(path, f"response.units.{k}", f"not one of the response DOFs {list(response)}")
+    units = {d: str(ru.get(d, "m")).strip() for d in response}
     pred = _table(path, doc, "predict", _PREDICT) or {}
     predict = {}
     if "frequency_range_hz" in pred:
@@ -354,5 +362,5 @@ def read_structure_model(path) -> StructureSpec:
             predict[k] = int(_number(path, f"predict.{k}", pred[k], positive=True, integer=True))
     if "n_harmonics" in predict and "n_time" in predict and predict["n_time"] <= 2 * predict["n_harmonics"]:
         raise _err(path, "predict.n_time", f"must exceed 2 n_harmonics = {2 * predict['n_harmonics']}")
-    out.update(joints=tuple(joints), force=fw, response=response, predict=predict)
+    out.update(joints=tuple(joints), force=fw, response=response, predict=predict, response_units=units)
     return StructureSpec(**out)
