@@ -127,6 +127,7 @@ dofs = ["tip"]
     ('dofs = { "B.w10" = 1.0 }', 'dofs = { "B.w10" = "one" }', ManifestError, "force.dofs.B.w10"),
     ('n_modes = 12', 'n_modes = 100', ManifestError, "model.n_modes"),
     ('force_levels = [0.5, 2.0, 5.0]', 'force_levels = [0.5, 0.0]', ManifestError, r"predict.force_levels\[1\]"),
+    ('motion = "rotation"', 'motion = "spin"', ManifestError, r"joint\[0\].motion.*translation.*rotation"),
     ('dofs = ["A.w0", "B.w10"] ', 'dofs = ["A.w0", "B.w10"]\nunits = { "B.r0" = "rad" } ', ManifestError,
      r"response.units.B.r0.*not one of the response DOFs"),
     ('dofs = ["A.w0", "B.w10"] ', 'dofs = ["A.w0", "B.w10"]\nunits = { "A.w0" = 3 } ', ManifestError,
@@ -191,6 +192,8 @@ def test_predict_command_on_the_documented_model(lap, tmp_path, capsys):
     assert (out / "figures" / "structure_frf.png").is_file() and (out / "report.txt").is_file()
     lo, hi = (p["peaks"]["B.w10"] for p in res["predictions"])
     assert res["model"]["response_units"] == {"A.w0": "m", "B.w10": "m"}  # translations unless declared
+    # the lap joint is a rotation: its Iwan law's slip force is a moment, its stiffness per radian
+    assert res["model"]["joints"][0]["units"] == {"F_S": "N m", "K_T": "N m/rad", "chi": "1", "beta": "1"}
     # the joint slips more at 5 N: the peak moves down from the stuck joint's 84.19 Hz, and further at 5 N
     assert 72 < hi["peak_frequency_hz"] < lo["peak_frequency_hz"] < 84.19
     for p in res["predictions"]:
@@ -199,3 +202,11 @@ def test_predict_command_on_the_documented_model(lap, tmp_path, capsys):
         assert f[0] == pytest.approx(72.0) and f[-1] == pytest.approx(88.0)
         # the located peak is at least the largest continued point
         assert p["peaks"]["B.w10"]["peak_amplitude"] >= max(p["curve"]["amplitude"]["B.w10"]) * (1 - 1e-12)
+
+
+def test_motion_units_read_a_translation_law_for_a_rotation():
+    from jointid.io.structure_model import motion_units
+
+    assert [motion_units(u, "rotation") for u in ("N", "N/m", "1", "1/m", "N/m^3", "N s/m")] == [
+        "N m", "N m/rad", "1", "1/rad", "N m/rad^3", "N m s/rad"]
+    assert motion_units("N/m", "translation") == "N/m"

@@ -276,8 +276,8 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
     model = {"name": spec.name, "path": spec.path, "n_modes": st.modal.n_modes,
              "frequencies_hz": [float(x) for x in st.modal.frequencies_hz],
              "damping_ratios": [float(x) for x in st.modal.zeta],
-             "joints": [{"name": j.name, "dofs": [j.dof_a, j.dof_b], "k_model": j.k_model, "law": j.law.summary()}
-                        for j in spec.joints],
+             "joints": [{"name": j.name, "dofs": [j.dof_a, j.dof_b], "k_model": j.k_model, "law": j.law.summary(),
+                         "motion": j.motion, "units": j.units} for j in spec.joints],
              "force": dict(spec.force), "response": list(response),
              "response_units": {d: spec.response_units.get(d, "m") for d in response}}
     settings = {"frequency_range_hz": [float(band[0]), float(band[1])], "n_harmonics": H, "n_time": N,

@@ -47,6 +47,7 @@ from ..errors import (
     StructureError,
 )
 from ..io.structure_model import read_structure_model
+from ..rounding import format_ci, format_pm
 from ..simulate.structure import JointElement, StructureModel, structure_from_spec
 from ..simulate.structure_hb import to_complex
 from .structure_predict import located_peak
@@ -223,11 +224,10 @@ class JointUpdate:
               f"{self.n_harmonics}"),
              f"chi2/dof = {self.chi2:.4g} / {self.dof} = {self.chi2_per_dof:.3f}"
              + (" (covariance scaled by it)" if self.covariance_scaled else " (covariance not scaled: <= 1)"),
-             "", f"{'parameter':<10} {'start':>12} {'estimate':>12} {'stderr':>11} {'95 % interval':>27}  unit"]
+             "", f"{'parameter':<10} {'start':>10} {'estimate ± standard error':>28} {'95 % interval':>24}  unit"]
         for k in self.names:
-            lo, hi = self.ci95[k]
-            L.append(f"{k:<10} {self.start[k]:>12.6g} {self.estimate[k]:>12.6g} {self.stderr[k]:>11.3g} "
-                     f"[{lo:>12.6g}, {hi:>12.6g}]  {self.units.get(k, '')}")
+            L.append(f"{k:<10} {self.start[k]:>10.6g} {format_pm(self.estimate[k], self.stderr[k]):>28} "
+                     f"{format_ci(self.ci95[k], self.stderr[k]):>24}  {self.units.get(k, '')}")
         if self.heldout:
             L += ["", "leave-one-level-out (fitted without the level, its response predicted):",
                   f"{'level':>8} {'peak f err %':>13} {'peak A err %':>13} {'rms A err %':>12}  note"]
@@ -357,7 +357,7 @@ def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmoni
         corr = (cov / np.outer(d, d)).tolist()
     if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
-    res = JointUpdate(str(spec.path), meas.path, names_j[j], law.name, names, {k: law.units.get(k, "") for k in names},
+    res = JointUpdate(str(spec.path), meas.path, names_j[j], law.name, names, {k: spec.joints[j].units.get(k, "") for k in names},
                       {k: law.parameters[k] for k in names}, est, se, ci, dict(zip(names, fitter.log)),
                       chi2, dof, bool(scaled), corr, int(meas.X.size), int(n_harmonics), int(sol.nfev), warnings=warn)
     res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas)}

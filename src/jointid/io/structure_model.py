@@ -15,6 +15,7 @@ The result is a :class:`StructureSpec` of plain arrays and joint-law objects;
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,7 +40,7 @@ _TOP = {"model", "matrices", "modal", "damping", "joint", "force", "response", "
 _MATRICES = {"file", "mass", "stiffness", "mass_key", "stiffness_key", "dof_names", "dof_names_key"}
 _MODAL = {"frequencies_hz", "damping_ratios", "dof_names", "shapes"}
 _DAMPING = {"modal", "rayleigh"}
-_JOINT = {"name", "dofs", "law", "parameters", "k_model"}
+_JOINT = {"name", "dofs", "law", "parameters", "k_model", "motion"}
 _PREDICT = {"frequency_range_hz", "force_levels", "n_harmonics", "n_time"}
 
 
@@ -52,6 +53,23 @@ class JointSpec:
     dof_b: str
     law: object
     k_model: float
+    motion: str = "translation"  # or "rotation": the law's N and m read as N m and rad
+
+    @property
+    def units(self) -> dict:
+        """Units of the law's parameters for this joint's motion (:func:`motion_units`)."""
+        return {k: motion_units(u, self.motion) for k, u in self.law.units.items()}
+
+
+def motion_units(unit: str, motion: str) -> str:
+    """A joint law's parameter unit (written for a translation: force N, displacement m) for a
+    rotation: ``N`` -> ``N m`` (a moment), ``m`` -> ``rad`` (``N/m`` -> ``N m/rad``, ``1/m`` -> ``1/rad``)."""
+    if motion != "rotation" or not unit:
+        return unit
+    num, _, den = unit.partition("/")
+    num = re.sub(r"\bN\b", "N m", num)
+    num = re.sub(r"(?<!N )\bm\b", "rad", num)
+    return num + ("/" + re.sub(r"\bm\b", "rad", den) if den else "")
 
 
 @dataclass(frozen=True, eq=False)
@@ -329,7 +347,10 @@ def read_structure_model(path) -> StructureSpec:
         if km == "stuck":
             km = stuck_stiffness(law)
         km = _number(path, f"{key}.k_model", km, nonneg=True)
-        joints.append(JointSpec(str(jn), a, b, law, float(km)))
+        motion = j.get("motion", "translation")
+        if motion not in ("translation", "rotation"):
+            raise _err(path, f"{key}.motion", f"expected \"translation\" or \"rotation\", got {motion!r}")
+        joints.append(JointSpec(str(jn), a, b, law, float(km), motion))
     force = _table(path, doc, "force", {"dofs"}, required=True)
     fd = force.get("dofs")
     if not isinstance(fd, dict) or not fd:
