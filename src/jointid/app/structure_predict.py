@@ -410,7 +410,7 @@ def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> 
             for lv in result.levels:
                 if lv.error:
                     continue
-                line, = ax.plot(lv.frequency_hz, lv.amplitude[d], lw=1.2, label=f"F = {lv.force_level:g}")
+                line, = ax.plot(lv.frequency_hz, lv.amplitude[d], lw=1.2, label=f"F = {lv.force_level:g} N")
                 pk = lv.peaks[d]
                 ax.plot(pk["peak_frequency_hz"], pk["peak_amplitude"], "o", color=line.get_color(), ms=4)
             for b in result.backbones:

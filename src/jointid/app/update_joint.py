@@ -390,11 +390,14 @@ def write_update(result: JointUpdate, out, inputs=()) -> dict:
             for lv in meas.levels():
                 i = np.flatnonzero(meas.force_level == lv)
                 o = i[np.argsort(meas.frequency_hz[i])]
-                line, = ax.plot(meas.frequency_hz[o], np.abs(mod[o]), "-", lw=1.1, label=f"F = {lv:g}, fitted")
+                line, = ax.plot(meas.frequency_hz[o], np.abs(mod[o]), "-", lw=1.1, label=f"F = {lv:g} N, fitted")
                 ax.errorbar(meas.frequency_hz[o], np.abs(meas.X[o]), yerr=meas.se[o], fmt="o", ms=3,
                             color=line.get_color())
             ax.set_xlabel("frequency [Hz]")
-            ax.set_ylabel("first-harmonic amplitude")
+            resp_units = read_structure_model(result.model_path).response_units
+            dofs = sorted(set(meas.dof))
+            units = sorted({resp_units.get(d, "m") for d in dofs})
+            ax.set_ylabel(f"{', '.join(f'|{d}|' for d in dofs)} first harmonic [{', '.join(units)}]")
             ax.set_title(f"{result.joint}: updated {result.law} (dots: measured)")
             ax.legend(fontsize=8)
             ax.grid(alpha=0.3)
