@@ -388,14 +388,10 @@ def _mode_backbone(st, spec, r, top, H, N, response, n_points=20) -> ModeBackbon
 def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> dict:
     """``results.json``, ``report.txt``, ``figures/structure_frf.png`` (the backbones dashed) and
     ``figures/backbones.png`` in ``out`` as one output set."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from ..io.outputset import new_run_id, output_set
     from ..io.results import atomic_write, write_json
     from ..report.html import figure_to_png
+    from ..report.structure_plots import plot_backbones, plot_structure_frf
 
     final = Path(out)
     run_id = new_run_id()
@@ -404,46 +400,12 @@ def write_structure_predictions(result: StructurePrediction, out, inputs=()) -> 
     with output_set(final, run_id, kind="predict", inputs=inputs) as tmp:
         paths = {"results": write_json(tmp / "results.json", summary),
                  "report": atomic_write(tmp / "report.txt", result.report() + f"\n\nrun id {run_id}\n")}
-        resp = result.model["response"]
-        fig, axes = plt.subplots(len(resp), 1, figsize=(7, 2.6 * len(resp) + 0.6), squeeze=False)
-        for ax, d in zip(axes[:, 0], resp):
-            for lv in result.levels:
-                if lv.error:
-                    continue
-                line, = ax.plot(lv.frequency_hz, lv.amplitude[d], lw=1.2, label=f"F = {lv.force_level:g} N")
-                pk = lv.peaks[d]
-                ax.plot(pk["peak_frequency_hz"], pk["peak_amplitude"], "o", color=line.get_color(), ms=4)
-            for b in result.backbones:
-                if b.amplitude:
-                    ax.plot(b.frequency_hz, b.response_amplitude[d], "k--", lw=0.9,
-                            label=f"backbone, mode {b.mode}")
-            ax.set_ylim(bottom=0.0, top=1.1 * max([max(lv.amplitude[d]) for lv in result.levels if not lv.error]
-                                                  or [1.0]))
-            ax.set_ylabel(f"|{d}| first harmonic [{result.unit(d)}]")
-            ax.grid(alpha=0.3)
-        axes[-1, 0].set_xlabel("frequency [Hz]")
-        axes[0, 0].legend(fontsize=8)
-        axes[0, 0].set_title(f"{result.model['name']}: multi-harmonic balance with continuation (dots: peaks)")
-        fig.tight_layout()
+        fig = plot_structure_frf(result)
         atomic_write(tmp / "figures" / "structure_frf.png", figure_to_png(fig, dpi=110))
-        plt.close(fig)
         paths["figures"] = [tmp / "figures" / "structure_frf.png"]
-        drawn = [b for b in result.backbones if b.amplitude]
-        if drawn:
-            fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.4))
-            for b in drawn:
-                ax1.semilogx(b.amplitude, b.frequency_hz, lw=1.2, label=f"mode {b.mode}")
-                ax2.semilogx(b.amplitude, b.damping_ratio, lw=1.2)
-            ax1.set_ylabel("backbone frequency [Hz]")
-            ax2.set_ylabel("damping ratio")
-            for ax in (ax1, ax2):
-                ax.set_xlabel("modal amplitude, first harmonic [kg$^{1/2}$ m]")  # mass-normalised modes
-                ax.grid(alpha=0.3)
-            ax1.legend(fontsize=8)
-            fig.suptitle(f"{result.model['name']}: nonlinear modes (extended periodic motion concept)", fontsize=10)
-            fig.tight_layout()
+        fig = plot_backbones(result.backbones, result.model["name"])
+        if fig is not None:
             atomic_write(tmp / "figures" / "backbones.png", figure_to_png(fig, dpi=110))
-            plt.close(fig)
             paths["figures"].append(tmp / "figures" / "backbones.png")
     rel = (lambda v: final / Path(v).relative_to(tmp))
     return {k: ([rel(x) for x in v] if isinstance(v, list) else rel(v)) for k, v in paths.items()}

@@ -369,14 +369,10 @@ def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmoni
 
 def write_update(result: JointUpdate, out, inputs=()) -> dict:
     """``results.json``, ``report.txt`` and ``figures/update_fit.png`` in ``out`` as one output set."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from ..io.outputset import new_run_id, output_set
     from ..io.results import atomic_write, write_json
     from ..report.html import figure_to_png
+    from ..report.structure_plots import plot_update_fit
 
     run_id = new_run_id()
     summary = result.summary()
@@ -386,22 +382,7 @@ def write_update(result: JointUpdate, out, inputs=()) -> dict:
                  "report": atomic_write(tmp / "report.txt", result.report() + f"\n\nrun id {run_id}\n")}
         meas, mod = result.fitted.get("measured"), result.fitted.get("model")
         if meas is not None:
-            fig, ax = plt.subplots(figsize=(7, 3.6))
-            for lv in meas.levels():
-                i = np.flatnonzero(meas.force_level == lv)
-                o = i[np.argsort(meas.frequency_hz[i])]
-                line, = ax.plot(meas.frequency_hz[o], np.abs(mod[o]), "-", lw=1.1, label=f"F = {lv:g} N, fitted")
-                ax.errorbar(meas.frequency_hz[o], np.abs(meas.X[o]), yerr=meas.se[o], fmt="o", ms=3,
-                            color=line.get_color())
-            ax.set_xlabel("frequency [Hz]")
-            resp_units = read_structure_model(result.model_path).response_units
-            dofs = sorted(set(meas.dof))
-            units = sorted({resp_units.get(d, "m") for d in dofs})
-            ax.set_ylabel(f"{', '.join(f'|{d}|' for d in dofs)} first harmonic [{', '.join(units)}]")
-            ax.set_title(f"{result.joint}: updated {result.law} (dots: measured)")
-            ax.legend(fontsize=8)
-            ax.grid(alpha=0.3)
-            fig.tight_layout()
+            fig = plot_update_fit(meas, mod, joint=result.joint, law=result.law,
+                                  response_units=read_structure_model(result.model_path).response_units)
             paths["figure"] = atomic_write(tmp / "figures" / "update_fit.png", figure_to_png(fig, dpi=110))
-            plt.close(fig)
     return paths
