@@ -768,8 +768,6 @@ def main(argv=None) -> int:
         print("jointid public-data: error: no example could be run", file=sys.stderr)
         return 2
     if args.out is not None:
-        import matplotlib.pyplot as plt
-
         from ..io.results import atomic_write, write_json
         from ..report.html import figure_to_png
 
@@ -780,8 +778,7 @@ def main(argv=None) -> int:
                 fig = r.plot()
                 fig = fig if hasattr(fig, "savefig") else np.ravel(fig)[0].figure
                 pngs[k] = figure_to_png(fig, dpi=120)  # drawn once: the same bytes in the file and the page
-                atomic_write(tmp / f"{k}.png", pngs[k])
-                plt.close(fig)
+                atomic_write(tmp / f"{k}.png", pngs[k])  # drawn outside pyplot: nothing to close
             write_report(tmp / "report.html", results, pngs)
             for k, r in results.items():  # an example identified as a campaign writes its identify set in DIR/<name>
                 if hasattr(r, "write"):
