@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from jointid.app.fit_checks import CHI2_DOF_LIMIT, P_LIMIT, fit_checks, misfit_lines
+from jointid.app.fit_checks import CHI2_DOF_LIMIT, P_LIMIT, fit_checks, misfit_lines, misfits
 from jointid.cli import main
 from jointid.identify.delay import ChannelDelay
 from jointid.identify.laws import DampingLaw
@@ -36,6 +36,18 @@ def test_damping_law_check(chi2, dof, fits):
     assert bool(lines) is (not fits)
     if not fits:
         assert "does not fit" in lines[1] and "understate" in lines[1]
+
+
+def test_a_stand_ins_damping_law_beside_a_selected_hysteretic_law_is_not_a_misfit():
+    """--terms auto picked a hysteretic law at preload 5: the damping law there is the polynomial stand-in's."""
+    sel = {5: SimpleNamespace(hysteretic_model=object()), 6: SimpleNamespace(hysteretic_model=None)}
+    c5, c6 = fit_checks(SimpleNamespace(damping_laws={5: _law(649.25, 2), 6: _law(649.25, 2)}, channel_delay=None,
+                                        selections=sel))
+    assert c5["fits"] is False and c5["stand_in"] is True and "stand-in" in c5["label"]
+    assert c6["fits"] is False and "stand_in" not in c6
+    assert misfits([c5, c6]) == [c6]
+    lines = misfit_lines({"fit_checks": [c5, c6]})
+    assert len(lines) == 2 and "preload 6" in lines[1]
 
 
 def test_immaterial_misfit_of_noise_free_data_fits():

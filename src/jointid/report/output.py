@@ -116,7 +116,7 @@ def _with_provenance(meta, result):
 def misfit_text(summary) -> str:
     """One sentence naming the regressions whose model does not fit the data to their errors
     (``results.json`` ``fit_checks``, :mod:`jointid.app.fit_checks`); empty when all fit."""
-    bad = [c for c in summary.get("fit_checks") or [] if c.get("fits") is False]
+    bad = [c for c in summary.get("fit_checks") or [] if c.get("fits") is False and not c.get("stand_in")]
     if not bad:
         return ""
     return "The model does not fit the data to their errors: " + "; ".join(c.get("message", "") for c in bad) + "."
