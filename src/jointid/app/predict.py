@@ -76,6 +76,7 @@ from ..errors import (
     RecordError,
     RecordFileNotFoundError,
 )
+from ..numerics.intervals import Z95
 from .predict_peaks import (  # noqa: F401 (here before)
     DS_MAX,
     MAX_WIDEN,
@@ -100,8 +101,6 @@ __all__ = [
     "usable_models",
     "write_predictions",
 ]
-
-Z95 = 1.959963984540054
 
 
 def _shown(v) -> str:

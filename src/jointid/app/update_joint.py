@@ -51,11 +51,11 @@ from ..rounding import format_ci, format_pm
 from ..simulate.structure import JointElement, StructureModel, structure_from_spec
 from ..simulate.structure_hb import to_complex
 from .structure_predict import located_peak
+from ..numerics.intervals import Z95
 
 __all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "write_update"]
 
 _COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
-Z95 = 1.959963984540054
 #: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
 ADEQUATE_CHI2_PER_DOF = 4.0
 

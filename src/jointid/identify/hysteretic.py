@@ -44,6 +44,7 @@ from ..errors import IdentificationError, IllConditionedWarning
 from ..joints import Iwan4, Jenkins
 from ..joints.sliders import _BLOCK_ELEMENTS, _play_block
 from ..signal.harmonics import StateSignals
+from ..numerics.intervals import Z95 as _Z95
 
 __all__ = ["HystereticForceStateMapping", "HystereticFit", "LAWS", "first_harmonic_peak", "first_harmonic_response"]
 
@@ -53,7 +54,6 @@ LAWS = ("jenkins", "iwan4", "jenkins+cubic", "iwan4+cubic")
 CUBIC = "+cubic"
 #: Harmonics used to estimate a channel's noise level (fewer when the sampling does not allow them).
 NOISE_HARMONICS = 25
-_Z95 = 1.959963984540054
 #: Local searches started from the coarse grid's best distinct points.
 N_STARTS = 3
 #: Evaluations of a probe of the second and later starts: a search that has not converged then goes on only

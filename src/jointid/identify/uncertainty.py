@@ -39,6 +39,7 @@ import numpy as np
 from scipy import linalg
 
 from ..conventions import n_coefficients
+from ..numerics.intervals import Z95
 from ..signal.harmonics import HarmonicSeries, StateSignals, _basis
 from .regression import reduce_blocks
 
@@ -56,9 +57,6 @@ __all__ = [
     "sandwich",
     "scaled_inverse",
 ]
-
-#: Two-sided 95 % quantile of the normal distribution.
-Z95 = 1.959963984540054
 
 
 def ci95(value, stderr):

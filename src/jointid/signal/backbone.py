@@ -14,10 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Backbone", "Z95"]
+from ..numerics.intervals import Z95
 
-#: Two-sided 95 % normal quantile used for the bands.
-Z95 = 1.959963984540054
+__all__ = ["Backbone", "Z95"]
 
 
 def _readonly(a):
