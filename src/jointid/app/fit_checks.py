@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.results import misfits
+
 __all__ = ["P_LIMIT", "CHI2_DOF_LIMIT", "RELATIVE_FLOOR", "fit_checks", "misfits", "misfit_lines"]
 
 #: A regression whose chi-square has a probability below this ... (module docstring).
@@ -117,12 +119,6 @@ def fit_checks(result) -> list:
                               "the delay's standard error is scaled by that factor, and the delay absorbs what the "
                               "damping law misses", rel))
     return out
-
-
-def misfits(checks) -> list:
-    """The failed entries of :func:`fit_checks` (or of a ``results.json`` ``fit_checks`` list), apart from
-    those of a polynomial stand-in beside a selected hysteretic law (``stand_in``)."""
-    return [c for c in checks or () if c.get("fits") is False and not c.get("stand_in")]
 
 
 def misfit_lines(summary) -> list:

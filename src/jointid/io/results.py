@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import OutputError
 
-__all__ = ["atomic_write", "write_json", "write_csv", "to_jsonable", "atomic_savefig", "csv_safe",
+__all__ = ["misfits", "atomic_write", "write_json", "write_csv", "to_jsonable", "atomic_savefig", "csv_safe",
            "check_output_folder", "MARKER"]
 
 #: File that marks a folder as a jointid output set (holds the run id).
@@ -159,3 +159,10 @@ def check_output_folder(out, *, replace_set=True) -> Path:
         raise OutputError(f"{out}: exists and holds files that are not a jointid output set; the set replaces "
                           f"the whole folder, so give a new or empty folder (see jointid.io.outputset)")
     return out
+
+
+def misfits(checks) -> list:
+    """The entries of a ``results.json`` ``fit_checks`` list whose model does not fit its data
+    (``fits`` false), apart from those of a polynomial stand-in beside a selected hysteretic law
+    (``stand_in``): the rule behind identify's exit status and the report's misfit sentence."""
+    return [c for c in checks or () if c.get("fits") is False and not c.get("stand_in")]

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.outputset import MARKER, check_output_folder, new_run_id, output_set
-from ..io.results import atomic_write, write_csv, write_json
+from ..io.results import atomic_write, misfits, write_csv, write_json
 from .formatting import SLUG_MAX, format_value, slug, tex_safe  # noqa: F401  (slug, tex_safe re-exported)
 from .html import Section, figure_to_png, write_html
 from .identify_plots import new_axes, plot_damping_law, plot_hysteresis, plot_parameters_vs_frequency, plot_power_law
@@ -116,7 +116,7 @@ def _with_provenance(meta, result):
 def misfit_text(summary) -> str:
     """One sentence naming the regressions whose model does not fit the data to their errors
     (``results.json`` ``fit_checks``, :mod:`jointid.app.fit_checks`); empty when all fit."""
-    bad = [c for c in summary.get("fit_checks") or [] if c.get("fits") is False and not c.get("stand_in")]
+    bad = misfits(summary.get("fit_checks"))
     if not bad:
         return ""
     return "The model does not fit the data to their errors: " + "; ".join(c.get("message", "") for c in bad) + "."
