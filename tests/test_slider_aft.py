@@ -129,7 +129,7 @@ def test_constant_and_blocked(monkeypatch, jacobian):
     u = _motion(rng, (3,), 96, 9)
     want = _oracle(u, k, phi, x0, jacobian, False)
     for block in (2 * 3 * 30, 5 * 3 * 30, 97 * 3 * 30):
-        monkeypatch.setattr(sliders, "_BLOCK_ELEMENTS", block)
+        monkeypatch.setattr(sliders, "BLOCK_ELEMENTS", block)
         _same(sliders._slider_aft(u, k, phi, x0, jacobian), want)
 
 

@@ -42,7 +42,7 @@ from scipy import optimize
 from .._blas import single_threaded
 from ..errors import IdentificationError, IllConditionedWarning
 from ..joints import Iwan4, Jenkins
-from ..joints.sliders import _BLOCK_ELEMENTS, _play_block
+from ..joints.sliders import BLOCK_ELEMENTS, play_block
 from ..signal.harmonics import StateSignals
 from ..numerics.intervals import Z95 as _Z95
 
@@ -565,14 +565,14 @@ class HystereticForceStateMapping:
         dkT = np.ascontiguousarray(dk.T)
         phi2 = phi * (1.0 + 1e-6)  # the slip signs, from the positions' change with phi (x = u_j -+ phi)
         inv = 1.0 / (phi2 - phi)
-        x = _play_block(U, np.zeros((nr, m)), phi, end_only=True)  # the first sweep's end states
-        x2 = _play_block(U, np.zeros((nr, m)), phi2, end_only=True)
+        x = play_block(U, np.zeros((nr, m)), phi, end_only=True)  # the first sweep's end states
+        x2 = play_block(U, np.zeros((nr, m)), phi2, end_only=True)
         f, df = np.empty((n, nr)), np.empty((n, nr, dk.shape[0]))
-        tb = max(2, _BLOCK_ELEMENTS // max(nr * m, 1))
+        tb = max(2, BLOCK_ELEMENTS // max(nr * m, 1))
         for t0 in range(0, n, tb):  # the periodic sweep a block of samples at a time (as aft)
             t1 = min(n, t0 + tb)
-            X = _play_block(U[:, t0:t1], x, phi)  # (tb, nr, m)
-            X2 = _play_block(U[:, t0:t1], x2, phi2)
+            X = play_block(U[:, t0:t1], x, phi)  # (tb, nr, m)
+            X2 = play_block(U[:, t0:t1], x2, phi2)
             sg = np.rint((X - X2) * inv).reshape(-1, m)  # -1, 0 (never slipped) or 1
             e = (U[:, t0:t1].T[:, :, None] - X).reshape(-1, m)  # the elements' deflection
             f[t0:t1] = (e @ k).reshape(t1 - t0, nr)

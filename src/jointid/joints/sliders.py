@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import StructureError
 from ._core import JointLaw, _number, _scalar_out
 
-__all__ = ["Jenkins", "DiscreteIwan", "jenkins_harmonic_stiffness"]
+__all__ = ["Jenkins", "DiscreteIwan", "jenkins_harmonic_stiffness", "play_block", "BLOCK_ELEMENTS"]
 
 
 def jenkins_harmonic_stiffness(s):
@@ -32,10 +32,10 @@ def jenkins_harmonic_stiffness(s):
 
 #: Elements (samples x batch x sliders) evaluated at once by :func:`_slider_aft`: longer motions and
 #: larger batches go in blocks of samples (bounded memory; past ~1e5 elements larger blocks got slower).
-_BLOCK_ELEMENTS = 1 << 16
+BLOCK_ELEMENTS = 1 << 16
 
 
-def _play_block(s, x, phi, end_only=False):
+def play_block(s, x, phi, end_only=False):
     """Slider positions after each sample of ``s`` (batch ``B``, ``T`` samples), starting from ``x`` (B, m).
 
     Exactly the step ``x <- min(max(x, s_t - phi), s_t + phi)`` repeated over the samples, without
@@ -87,7 +87,7 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     either the old slider position or ``u_j -+ phi``, so ``d x_i(t_j) / d u`` is the unit
     vector of the sample where element ``i`` last slipped (zero if it never did).
 
-    The sweeps are evaluated a monotone stretch of ``u`` at a time (:func:`_play_block`), the
+    The sweeps are evaluated a monotone stretch of ``u`` at a time (:func:`play_block`), the
     values bit-identical to the sample-by-sample play operator; the force's ``x @ k`` is the
     same matrix product per sample as the sample loop's (one ``dot`` or ``gemv`` per sample
     over the same batch), stacked in one call.
@@ -105,13 +105,13 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     last = np.full((nb, m), -1, dtype=np.intp)  # step of each element's latest slip so far
     lasts = np.empty((n, nb, m), dtype=np.intp) if jacobian else None
     stack = (batch if batch else (1,)) + (m,)  # per sample: the sample loop's operand shape
-    tb = max(2, _BLOCK_ELEMENTS // max(nb * m, 1))
+    tb = max(2, BLOCK_ELEMENTS // max(nb * m, 1))
     for t0 in range(0, 2 * n, tb):
         t1 = min(2 * n, t0 + tb)
         if t1 <= n and not jacobian:
-            x = _play_block(ext[:, t0:t1], x, phi, end_only=True)
+            x = play_block(ext[:, t0:t1], x, phi, end_only=True)
             continue
-        X = _play_block(ext[:, t0:t1], x, phi)
+        X = play_block(ext[:, t0:t1], x, phi)
         a = max(t0, n)  # the block's first sample of the second sweep
         if jacobian:
             C = np.empty(X.shape, dtype=bool)  # the element moved at this step
