@@ -162,6 +162,18 @@ def test_cli_bad_input_exit_2(setup, tmp_path, capsys):
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
 
 
+def test_out_onto_an_input_folder_is_refused_and_nothing_is_deleted(setup, tmp_path, capsys):
+    """--out on the folder holding the model and the measured file (not an output set): exit 2, files kept."""
+    _, model, clean = setup
+    csv = write_csv(model.parent / "measured.csv", thin(campaign(clean, np.random.default_rng(4))))
+    before = sorted(p.name for p in model.parent.iterdir())
+    for out in (model.parent, csv.parent / "."):
+        assert main(["update", str(model), str(csv), "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "did not write as an output set" in err[0]
+    assert sorted(p.name for p in model.parent.iterdir()) == before and csv.read_text()
+
+
 @pytest.mark.slow
 def test_monte_carlo_z_scores_and_heldout(setup):
     """20 campaigns: the standard errors are calibrated (std z within 0.7-1.4, mean within 0.7).
