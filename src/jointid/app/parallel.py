@@ -352,7 +352,11 @@ def local_cluster(n_workers: int, allowed_failures: int = ALLOWED_FAILURES):
     A task may take ``allowed_failures`` workers down with it and still be run again.
 
     The workers run without dask's statistical profiler (:data:`WORKER_CONFIG`): it samples the
-    stack of the running task every 10 ms, CPU time taken from the numerical work.
+    stack of the running task every 10 ms, CPU time taken from the numerical work. They also keep
+    the C library's own heap policy: dask sets ``MALLOC_TRIM_THRESHOLD_=65536`` in a worker's
+    environment, which switches glibc's adaptive mmap threshold off, so every array above
+    128 KiB is mapped afresh and its pages faulted in again (about 9,000 page faults and 20 ms of
+    system time per campaign of ``benchmarks/bench_study.py``, none in this process).
     """
     import logging
 
@@ -367,8 +371,10 @@ def local_cluster(n_workers: int, allowed_failures: int = ALLOWED_FAILURES):
 
 
 #: dask configuration of the workers of :func:`local_cluster` (on an existing cluster, set
-#: ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False`` where the workers start).
-WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+#: ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False`` where the workers start, and start them
+#: without ``MALLOC_TRIM_THRESHOLD_`` in their environment, e.g. ``dask worker`` without a nanny).
+WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
+                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
 #: What the last :func:`map_tasks` call of this process ran on (set when it returns):
