@@ -8,7 +8,7 @@ and :mod:`jointid.errors` / :mod:`jointid.conventions`, so every floor may use i
 
 * :mod:`jointid.numerics.aft` -- time basis, phase derivative and projection of the
   alternating frequency/time method in the harmonic convention of
-  :mod:`jointid.conventions`;
+  :mod:`jointid.conventions`, its sample count and the real <-> complex coefficients;
 * :mod:`jointid.numerics.peaks` -- the peak of sampled data refined by a parabola, and
   samples of a peak refined by interval halving;
 * :mod:`jointid.numerics.intervals` -- the standard error, 95 % interval and resolution of

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..conventions import n_coefficients
 
-__all__ = ["aft_basis", "basis_at"]
+__all__ = ["aft_basis", "basis_at", "aft_samples", "to_complex", "to_real"]
 
 
 def _readonly(a):
@@ -76,4 +76,37 @@ def basis_at(tau, n_harmonics):
     out[..., 0] = 1.0
     out[..., 1::2] = np.cos(kt)
     out[..., 2::2] = np.sin(kt)
+    return out
+
+
+def aft_samples(n_harmonics: int, per_harmonic: int, minimum: int = 1) -> int:
+    """Time samples per period of an AFT: the power of two at or above
+    ``max(per_harmonic (H + 1), minimum)`` (a power of two suits the FFT).
+
+    Each harmonic-balance solver states its own oversampling (see its ``default_n_time``).
+
+    >>> aft_samples(9, 8), aft_samples(9, 4)
+    (128, 64)
+    """
+    m = max(int(per_harmonic) * (int(n_harmonics) + 1), int(minimum), 1)
+    return 1 << (m - 1).bit_length()
+
+
+def to_complex(c):
+    """Real coefficient vectors ``(..., 2H+1)`` -> complex amplitudes ``(..., H+1)``, ``X_k = a_k - i b_k``
+    (so that ``x(t) = Re sum_k X_k exp(i k omega t)``)."""
+    c = np.asarray(c, float)
+    out = np.empty(c.shape[:-1] + ((c.shape[-1] + 1) // 2,), complex)
+    out[..., 0] = c[..., 0]
+    out[..., 1:] = c[..., 1::2] - 1j * c[..., 2::2]
+    return out
+
+
+def to_real(X):
+    """Inverse of :func:`to_complex`."""
+    X = np.asarray(X)
+    out = np.empty(X.shape[:-1] + (2 * X.shape[-1] - 1,))
+    out[..., 0] = X[..., 0].real
+    out[..., 1::2] = X[..., 1:].real
+    out[..., 2::2] = -X[..., 1:].imag
     return out

@@ -41,8 +41,8 @@ import numpy as np
 
 from .._blas import single_threaded
 from ..errors import ConvergenceError, StructureError
+from ..numerics.aft import to_complex as _complex
 from ..simulate.structure_hb import CondensedHB, HBPoint
-from ..simulate.structure_hb import to_complex as _complex
 from .iwan import JointLaw
 
 __all__ = [

@@ -37,7 +37,8 @@ import numpy as np
 from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
-from .structure_hb import CondensedHB, default_n_time, to_complex, to_real
+from ..numerics.aft import to_complex, to_real
+from .structure_hb import CondensedHB, default_n_time
 
 __all__ = ["NonlinearModePoint", "NonlinearModeBackbone", "epmc_point", "epmc_backbone"]
 
@@ -164,7 +165,7 @@ class _Epmc:
         b = np.zeros((nj, n))
         b[:, 1] = self.psi_r * a
         RU = U - b.reshape(-1) + G @ Fv
-        F1 = F[:, 1] - 1j * F[:, 2]
+        F1 = to_complex(F)[:, 1]
         c = (self.Or**2 - w**2 + 1j * w * (self.dr - xi)) * a + self.psi_r @ F1
         out = {"RU": RU, "c": c, "F": F, "Hx": Hx}
         if not jacobian:

@@ -47,34 +47,20 @@ import numpy as np
 from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, ConvergenceWarning, StructureError
-from ..numerics.aft import aft_basis
+from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
 from .hbm.continuation import _accept, _Arclength, _locate_fold, _step
 
 __all__ = ["CondensedHB", "HBPoint", "HBCurve", "to_complex", "to_real", "default_n_time"]
 
 
-def to_complex(c):
-    """Real coefficient vectors (..., 2H+1) -> complex amplitudes (..., H+1), ``X_k = a_k - i b_k``."""
-    c = np.asarray(c, float)
-    out = np.empty(c.shape[:-1] + ((c.shape[-1] + 1) // 2,), complex)
-    out[..., 0] = c[..., 0]
-    out[..., 1:] = c[..., 1::2] - 1j * c[..., 2::2]
-    return out
-
-
-def to_real(X):
-    """Inverse of :func:`to_complex`."""
-    X = np.asarray(X)
-    out = np.empty(X.shape[:-1] + (2 * X.shape[-1] - 1,))
-    out[..., 0] = X[..., 0].real
-    out[..., 1::2] = X[..., 1:].real
-    out[..., 2::2] = -X[..., 1:].imag
-    return out
-
-
 def default_n_time(n_harmonics: int) -> int:
-    """The power of two at or above ``4 (H + 1)``: time samples per period of the AFT."""
-    return int(2 ** np.ceil(np.log2(4 * (int(n_harmonics) + 1))))
+    """The power of two at or above ``4 (H + 1)``: time samples per period of the AFT.
+
+    Half the single-mode solver's oversampling (:func:`jointid.simulate.hbm.default_n_time`,
+    ``8 (H + 1)``, alias-free for its polynomial terms up to degree 7): the joint laws here are
+    non-smooth sliders, whose aliasing does not vanish at any finite rate.
+    """
+    return aft_samples(n_harmonics, 4)
 
 
 @dataclass(frozen=True, eq=False)

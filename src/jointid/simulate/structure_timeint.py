@@ -29,7 +29,8 @@ from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
 from ..errors import ConvergenceError
-from .structure_hb import HBPoint, to_complex
+from ..numerics.aft import to_complex
+from .structure_hb import HBPoint
 
 __all__ = ["TimeIntegration", "integrate_from_point", "integrate_structure"]
 

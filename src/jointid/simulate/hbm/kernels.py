@@ -16,7 +16,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesv as _dgesv
 
 from ...conventions import harmonic_index, n_coefficients
-from ...numerics.aft import aft_basis, basis_at
+from ...numerics.aft import aft_basis, aft_samples, basis_at
 
 
 _TINY = 1e-300
@@ -32,7 +32,7 @@ def default_n_time(n_harmonics: int) -> int:
     A power of two (rfft-friendly) of at least ``8 (H + 1)``: exact (alias-free) for
     polynomial restoring forces up to degree 7, small aliasing for non-smooth terms.
     """
-    return int(2 ** math.ceil(math.log2(max(8 * (n_harmonics + 1), 16))))
+    return aft_samples(n_harmonics, 8, minimum=16)
 
 
 def _readonly(a):
