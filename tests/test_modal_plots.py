@@ -48,3 +48,15 @@ def test_plot_update_residuals():
     assert len(ax.patches) == 3
     fig2, ax2 = plt.subplots()
     assert plot_update_residuals(r, ax=ax2) == (fig2, ax2)
+
+
+def test_figures_drawn_for_a_report_are_not_kept_by_pyplot():
+    """A report draws many figures in one process; pyplot would keep every one of them alive."""
+    from jointid.simulate import frequency_response, seed_model
+
+    open_before = plt.get_fignums()
+    plot_mode_shapes(modal_analysis(seed_bolted_beam(120), 2))
+    f = np.linspace(20, 40, 200)
+    plot_frf((f, modal_frf(f, [2 * np.pi * 30.0], 0.01, [0.2], [1.0])), coherence=False)
+    frequency_response(seed_model(), 1.0, np.linspace(160, 180, 5)).plot()
+    assert plt.get_fignums() == open_before

@@ -72,12 +72,11 @@ def plot_frequency_response(
     """
     if quantity not in _QUANTITIES:
         raise ValueError(f"quantity must be one of {sorted(_QUANTITIES)}, got {quantity!r}")
-    import matplotlib.pyplot as plt
-
     from .figure_meta import ReportFigure
 
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(6.4, 4.2), FigureClass=ReportFigure)
+    if ax is None:  # no pyplot: a figure written by a report is freed with its last reference
+        fig = ReportFigure(figsize=(6.4, 4.2))
+        ax = fig.subplots()
     else:
         fig = ax.figure
     attr, ylabel = _QUANTITIES[quantity]

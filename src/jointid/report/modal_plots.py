@@ -12,14 +12,11 @@ __all__ = ["plot_mode_shapes", "plot_frf", "plot_update_residuals"]
 
 
 def _new(ax, nrows=1, figsize=(6.4, 4.2), sharex=False):
-    import matplotlib.pyplot as plt
-
     from .figure_meta import ReportFigure
 
-    if ax is None:
-        fig, ax = plt.subplots(nrows, 1, figsize=figsize, sharex=sharex, squeeze=True, FigureClass=ReportFigure,
-                               layout="constrained")
-        return fig, ax
+    if ax is None:  # no pyplot: a figure written by a report is freed with its last reference
+        fig = ReportFigure(figsize=figsize, layout="constrained")
+        return fig, fig.subplots(nrows, 1, sharex=sharex, squeeze=True)
     axes = np.atleast_1d(ax)
     return axes[0].figure, ax
 
