@@ -53,7 +53,7 @@ from ..simulate.structure_hb import to_complex
 from .structure_predict import located_peak
 from ..numerics.intervals import Z95
 
-__all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "write_update"]
+__all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
 
 _COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
 #: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
@@ -145,9 +145,12 @@ class _Fitter:
         out = np.empty(meas.X.size, complex)
         for lv in meas.levels():
             idx = np.flatnonzero(meas.force_level == lv)
-            prev = []
+            prev, pt = [], None
             for i in idx:
                 w = 2 * np.pi * meas.frequency_hz[i]
+                if prev and w == prev[-1][0]:  # another DOF of the same dwell: solved already
+                    out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pt.modal)[1]
+                    continue
                 guess = None
                 if len(prev) >= 2:
                     (w0, u0), (w1, u1) = prev[-2], prev[-1]
@@ -299,22 +302,37 @@ def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmoni
     spec = read_structure_model(model_path)
     model, _ = structure_from_spec(spec)
     meas = measured if isinstance(measured, MeasuredFRF) else read_measured_frf(measured)
+    j = _joint_index(model, joint, spec.path)
+    units = {k: spec.joints[j].units.get(k, "") for k in model.joints[j].law.parameters}
+    return update_structure_joint(model, meas, joint=joint, parameters=parameters, n_harmonics=n_harmonics,
+                                  n_time=n_time, heldout=heldout, source=str(spec.path), units=units)
+
+
+def _joint_index(model, joint, source):
     names_j = [j.name for j in model.joints]
     if joint is None:
-        j = 0
-    elif joint in names_j:
-        j = names_j.index(joint)
-    else:
-        raise ManifestError(f"{spec.path}: no joint named {joint!r} (joints: {', '.join(names_j)})")
+        return 0
+    if joint in names_j:
+        return names_j.index(joint)
+    raise ManifestError(f"{source}: no joint named {joint!r} (joints: {', '.join(names_j)})")
+
+
+def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=None, parameters=None, n_harmonics=9,
+                           n_time=None, heldout=True, source="<structure model>", units=None) -> JointUpdate:
+    """:func:`update_joint` on a structure model in memory (``source`` names it in messages and results;
+    ``units`` per parameter, default the law's own)."""
+    j = _joint_index(model, joint, source)
+    names_j = [jt.name for jt in model.joints]
     for d in sorted(set(meas.dof)):
         if d not in model.modal.dof_names:
-            raise ManifestError(f"{meas.path}: dof {d!r} is not a DOF of the structure model {spec.path}")
+            raise ManifestError(f"{meas.path}: dof {d!r} is not a DOF of the structure model {source}")
     law = model.joints[j].law
+    units = law.units if units is None else units
     avail = list(law.parameters)
     names = avail if parameters is None else list(parameters)
     bad = [k for k in names if k not in avail]
     if bad or not names:
-        raise ManifestError(f"{spec.path}: joint {names_j[j]!r} ({law.name}) has no parameter(s) "
+        raise ManifestError(f"{source}: joint {names_j[j]!r} ({law.name}) has no parameter(s) "
                             f"{', '.join(bad) or '(none given)'}; its parameters: {', '.join(avail)}")
     n_par = len(names)
     dof = 2 * meas.X.size - n_par
@@ -324,7 +342,7 @@ def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmoni
     try:
         r0 = fitter.residual(fitter.theta0, meas)
     except Exception as exc:  # noqa: BLE001 - a law rejecting its own start is a bad model file
-        raise ManifestError(f"{spec.path}: cannot evaluate the model at its starting parameters ({exc})") from None
+        raise ManifestError(f"{source}: cannot evaluate the model at its starting parameters ({exc})") from None
     if np.all(r0 == 1e6):
         raise IdentificationError(f"{meas.path}: the harmonic balance does not converge at the starting parameters")
     sol = fitter.fit(meas)
@@ -357,7 +375,7 @@ def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmoni
         corr = (cov / np.outer(d, d)).tolist()
     if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
-    res = JointUpdate(str(spec.path), meas.path, names_j[j], law.name, names, {k: spec.joints[j].units.get(k, "") for k in names},
+    res = JointUpdate(str(source), meas.path, names_j[j], law.name, names, {k: units.get(k, "") for k in names},
                       {k: law.parameters[k] for k in names}, est, se, ci, dict(zip(names, fitter.log)),
                       chi2, dof, bool(scaled), corr, int(meas.X.size), int(n_harmonics), int(sol.nfev), warnings=warn)
     res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas)}
