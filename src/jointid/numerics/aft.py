@@ -26,7 +26,7 @@ import numpy as np
 
 from ..conventions import n_coefficients
 
-__all__ = ["aft_basis", "basis_at", "aft_samples", "to_complex", "to_real"]
+__all__ = ["aft_basis", "aft_samples", "basis_at", "to_complex", "to_real"]
 
 
 def _readonly(a):

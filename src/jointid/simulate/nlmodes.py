@@ -38,6 +38,7 @@ from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
 from ..numerics.aft import to_complex, to_real
+from .newton import damped_newton
 from .structure_hb import CondensedHB, default_n_time
 
 __all__ = ["NonlinearModePoint", "NonlinearModeBackbone", "epmc_point", "epmc_backbone"]
@@ -206,35 +207,23 @@ class _Epmc:
 
 
 def _newton(prob: _Epmc, a, U, w, xi, tol, max_iter):
-    """Newton with step halving on the scaled residual; None when it does not converge."""
+    """Newton with step halving on the scaled residual (:func:`jointid.simulate.newton.damped_newton`)
+    on ``(U, omega, xi)``, ``omega`` kept positive; None when it does not converge."""
     m = U.size
     s, _ = prob.scales(a)
-    ev = prob.evaluate(U, w, xi, a)
-    R, err = prob.error(ev, U, a)
-    it = 0
-    while err >= tol and it < max_iter:
-        it += 1
+
+    def residual(x):
+        ev = prob.evaluate(x[:m], x[m], x[m + 1], a)
+        R, err = prob.error(ev, x[:m], a)
         J = ev["J"].copy()
         J[m:] *= s
-        try:
-            step = np.linalg.solve(J, -R)
-        except np.linalg.LinAlgError:
-            return None
-        lam = 1.0
-        while True:
-            Un, wn, xin = U + lam * step[:m], w + lam * step[m], xi + lam * step[m + 1]
-            if wn > 0:
-                evn = prob.evaluate(Un, wn, xin, a)
-                Rn, errn = prob.error(evn, Un, a)
-                if np.linalg.norm(Rn) < np.linalg.norm(R) or lam < 1e-3:
-                    break
-            elif lam < 1e-3:
-                return None
-            lam *= 0.5
-        U, w, xi, ev, R, err = Un, wn, xin, evn, Rn, errn
-    if not (err < tol and math.isfinite(err)):
+        return R, J, err, ev
+
+    out = damped_newton(np.concatenate([U, [w, xi]]), residual, tol, max_iter, admissible=lambda x: x[m] > 0)
+    if not out.converged:
         return None
-    return U, w, xi, ev, it, err
+    x = out.x
+    return x[:m], x[m], x[m + 1], out.state, out.iterations, out.error
 
 
 @single_threaded

@@ -49,6 +49,7 @@ from ..conventions import n_coefficients
 from ..errors import ConvergenceError, ConvergenceWarning, StructureError
 from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
 from .hbm.continuation import _accept, _Arclength, _locate_fold, _step
+from .newton import damped_newton
 
 __all__ = ["CondensedHB", "HBPoint", "HBCurve", "to_complex", "to_real", "default_n_time"]
 
@@ -454,27 +455,16 @@ class CondensedHB:
         def error(r, Uv):
             return np.linalg.norm(r) / max(np.linalg.norm(Uv), scale * 1e-6)
 
-        ev = self.evaluate(U, w, Fc, H, N)
-        r = ev["R"]
-        err = error(r, U)
-        it = 0
-        while err >= tol and it < max_iter:
-            it += 1
-            step = np.linalg.solve(ev["J"], -r)
-            lam = 1.0
-            while True:
-                Un = U + lam * step
-                evn = self.evaluate(Un, w, Fc, H, N)
-                if np.linalg.norm(evn["R"]) < np.linalg.norm(r) or lam < 1e-3:
-                    break
-                lam *= 0.5
-            U, ev = Un, evn
-            r = ev["R"]
-            err = error(r, U)
-        if not err < tol:
+        def residual(Uv):
+            ev = self.evaluate(Uv, w, Fc, H, N)
+            return ev["R"], ev["J"], error(ev["R"], Uv), ev
+
+        out = damped_newton(U, residual, tol, max_iter)
+        U, ev, it, err = out.x, out.state, out.iterations, out.error
+        if not out.converged:
             raise ConvergenceError(
                 f"harmonic balance at {w / (2 * np.pi):.6g} Hz did not converge: relative residual {err:.3g} "
-                f"> {tol:g} after {max_iter} Newton iterations"
+                f"> {tol:g} after {it} Newton iterations ({out.reason})"
             )
         return self.point(U, w, Fc, H, N, ev, it, err)
 
