@@ -39,14 +39,15 @@ from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
 from ..numerics.aft import to_complex, to_real
 from .newton import damped_newton
-from .structure_hb import CondensedHB, default_n_time
+from .structure_hb import CondensedHB, JointMotion, JointMotionCurve, default_n_time
 
 __all__ = ["NonlinearModePoint", "NonlinearModeBackbone", "epmc_point", "epmc_backbone"]
 
 
 @dataclass(frozen=True, eq=False)
-class NonlinearModePoint:
-    """One point of a damped nonlinear mode.
+class NonlinearModePoint(JointMotion):
+    """One point of a damped nonlinear mode (``frequency_hz`` and ``n_harmonics`` as
+    :class:`~jointid.simulate.structure_hb.HBPoint`).
 
     Attributes
     ----------
@@ -76,21 +77,14 @@ class NonlinearModePoint:
     residual_norm: float
 
     @property
-    def frequency_hz(self) -> float:
-        return self.omega / (2 * np.pi)
-
-    @property
     def damping_ratio(self) -> float:
         return self.xi / (2 * self.omega)
 
-    @property
-    def n_harmonics(self) -> int:
-        return (self.joint.shape[-1] - 1) // 2
-
 
 @dataclass(frozen=True, eq=False)
-class NonlinearModeBackbone:
-    """Backbone of one mode: frequency and damping ratio against amplitude."""
+class NonlinearModeBackbone(JointMotionCurve):
+    """Backbone of one mode: frequency and damping ratio against amplitude (``omega``,
+    ``frequency_hz`` and ``len`` as :class:`~jointid.simulate.structure_hb.HBCurve`)."""
 
     mode: int
     points: tuple
@@ -101,14 +95,6 @@ class NonlinearModeBackbone:
         return np.array([p.amplitude for p in self.points])
 
     @property
-    def omega(self) -> np.ndarray:
-        return np.array([p.omega for p in self.points])
-
-    @property
-    def frequency_hz(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
-
-    @property
     def damping_ratio(self) -> np.ndarray:
         return np.array([p.damping_ratio for p in self.points])
 
@@ -116,9 +102,6 @@ class NonlinearModeBackbone:
     def joint_amplitude(self) -> np.ndarray:
         """First-harmonic amplitude of each joint's relative motion, (n_points, n_joints)."""
         return np.array([np.abs(to_complex(p.joint)[:, 1]) for p in self.points])
-
-    def __len__(self):
-        return len(self.points)
 
 
 class _Epmc:

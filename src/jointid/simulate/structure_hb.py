@@ -51,7 +51,8 @@ from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
 from .hbm.continuation import _accept, _Arclength, _locate_fold, _step
 from .newton import damped_newton
 
-__all__ = ["CondensedHB", "HBPoint", "HBCurve", "to_complex", "to_real", "default_n_time"]
+__all__ = ["CondensedHB", "HBPoint", "HBCurve", "JointMotion", "JointMotionCurve", "to_complex", "to_real",
+           "default_n_time"]
 
 
 def default_n_time(n_harmonics: int) -> int:
@@ -64,8 +65,43 @@ def default_n_time(n_harmonics: int) -> int:
     return aft_samples(n_harmonics, 4)
 
 
+class JointMotion:
+    """What every periodic solution of the condensed engine shares (:class:`HBPoint`, the
+    nonlinear modes' :class:`~jointid.simulate.nlmodes.NonlinearModePoint`): the fields ``omega``
+    [rad/s], ``modal``, ``joint`` and ``joint_force`` (harmonic coefficients), ``iterations`` and
+    ``residual_norm`` of the subclass, and these properties."""
+
+    __slots__ = ()
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.omega / (2 * np.pi)
+
+    @property
+    def n_harmonics(self) -> int:
+        return (self.joint.shape[-1] - 1) // 2
+
+
+class JointMotionCurve:
+    """What a sequence of :class:`JointMotion` points shares (:class:`HBCurve`,
+    :class:`~jointid.simulate.nlmodes.NonlinearModeBackbone`): the field ``points`` and these."""
+
+    __slots__ = ()
+
+    @property
+    def omega(self) -> np.ndarray:
+        return np.array([p.omega for p in self.points])
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        return self.omega / (2 * np.pi)
+
+    def __len__(self):
+        return len(self.points)
+
+
 @dataclass(frozen=True, eq=False)
-class HBPoint:
+class HBPoint(JointMotion):
     """A periodic steady state found by :class:`CondensedHB`.
 
     Attributes
@@ -94,17 +130,9 @@ class HBPoint:
     iterations: int
     residual_norm: float
 
-    @property
-    def frequency_hz(self) -> float:
-        return self.omega / (2 * np.pi)
-
-    @property
-    def n_harmonics(self) -> int:
-        return (self.joint.shape[-1] - 1) // 2
-
 
 @dataclass(frozen=True, eq=False)
-class HBCurve:
+class HBCurve(JointMotionCurve):
     """Points of a continued frequency response, in the order of the curve.
 
     ``folds`` are the indices of the located turning points (where ``d omega / ds = 0``).
@@ -112,17 +140,6 @@ class HBCurve:
 
     points: tuple
     folds: tuple
-
-    @property
-    def omega(self) -> np.ndarray:
-        return np.array([p.omega for p in self.points])
-
-    @property
-    def frequency_hz(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
-
-    def __len__(self):
-        return len(self.points)
 
 
 class _Evaluation(dict):
