@@ -42,7 +42,7 @@ import numpy as np
 from .._blas import single_threaded
 from ..errors import ConvergenceError, StructureError
 from ..numerics.aft import to_complex as _complex
-from ..simulate.structure_hb import CondensedHB, HBPoint
+from ..simulate.structure_hb import CondensedHB, HBPoint, warm_sweep
 from .iwan import JointLaw
 
 __all__ = [
@@ -351,18 +351,9 @@ class ReducedModel:
 
     @single_threaded
     def sweep(self, omegas, force, n_harmonics=9, **kw):
-        """Harmonic balance at each frequency in turn, each started from a secant predictor."""
-        out = []
-        for i, w in enumerate(np.asarray(omegas, float)):
-            guess = None
-            if len(out) >= 2:
-                w0, w1 = out[-2].omega, out[-1].omega
-                s = (w - w1) / (w1 - w0) if w1 != w0 else 0.0
-                guess = out[-1].joint + s * (out[-1].joint - out[-2].joint)
-            elif out:
-                guess = out[-1]
-            out.append(self.harmonic_balance(w, force, n_harmonics, guess=guess, **kw))
-        return out
+        """Harmonic balance at each frequency in turn, each started from a secant predictor
+        (:func:`jointid.simulate.structure_hb.warm_sweep`)."""
+        return warm_sweep(lambda w, guess: self.harmonic_balance(w, force, n_harmonics, guess=guess, **kw), omegas)
 
     def initial_conditions(self, states):
         """``(eta, velocity, joint states)`` at ``t = 0`` of a batch of steady states."""

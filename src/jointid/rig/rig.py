@@ -38,6 +38,7 @@ from ..modal.analysis import ModalModel, modal_analysis
 from ..modal.beam import SEED_GEOMETRY, JointedBeam, seed_bolted_beam
 from ..numerics.peaks import parabolic_peak, refine_peak  # noqa: F401 (refine_peak re-exported: jointid.rig.rig.refine_peak)
 from ..simulate.nlmodes import epmc_backbone
+from ..simulate.structure_hb import warm_sweep
 from .iwan import IwanParameters, JointLaw
 from .reduced import JOINT_DIRECTIONS, ReducedModel, RigSteadyState, sample_series, settle_check
 
@@ -334,19 +335,10 @@ class VirtualRig:
         )
 
     def sweep(self, frequencies_hz, force_amplitude, *, distortion=()) -> list:
-        """Steady states over a frequency list, each started from its neighbours (secant)."""
-        out = []
-        for f in np.asarray(frequencies_hz, float):
-            guess = None
-            if len(out) >= 2:
-                s0, s1 = out[-2], out[-1]
-                n = min(s0.joint.shape[-1], s1.joint.shape[-1])
-                s = (f - s1.frequency_hz) / (s1.frequency_hz - s0.frequency_hz)
-                guess = s1.joint[:, :n] + s * (s1.joint[:, :n] - s0.joint[:, :n])
-            elif out:
-                guess = out[-1]
-            out.append(self.steady_state(f, force_amplitude, distortion=distortion, guess=guess))
-        return out
+        """Steady states over a frequency list, each started from its neighbours (secant,
+        :func:`jointid.simulate.structure_hb.warm_sweep`)."""
+        return warm_sweep(lambda f, guess: self.steady_state(f, force_amplitude, distortion=distortion, guess=guess),
+                          frequencies_hz, lambda p: p.frequency_hz)
 
     def record(self, state: RigSteadyState, acquisition: Acquisition, rng, source: str = "") -> Channels:
         """Sample the force cell and accelerometers of a steady state (``t = 0 .. duration``).

@@ -51,8 +51,10 @@ from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
 from .hbm.continuation import _accept, _Arclength, _locate_fold, _step
 from .newton import damped_newton
 
-__all__ = ["CondensedHB", "HBPoint", "HBCurve", "JointMotion", "JointMotionCurve", "to_complex", "to_real",
-           "default_n_time"]
+__all__ = [
+    "CondensedHB", "HBPoint", "HBCurve", "JointMotion", "JointMotionCurve", "warm_sweep", "to_complex", "to_real",
+    "default_n_time",
+]
 
 
 def default_n_time(n_harmonics: int) -> int:
@@ -140,6 +142,31 @@ class HBCurve(JointMotionCurve):
 
     points: tuple
     folds: tuple
+
+
+def warm_sweep(solve, frequencies, frequency=lambda p: p.omega) -> list:
+    """``solve(f, guess)`` at each frequency ``f`` in turn: the second point starts from the first,
+    every later one from the secant through the joint coefficients of the two before it (in the
+    harmonics both carry).
+
+    ``frequency(point)`` gives a point's frequency in the units of ``frequencies`` (rad/s by
+    default).  The sequential sweep of the condensed engine, the rig's reduced model and the
+    virtual rig (in Hz); the single-mode solver's sweep (:mod:`jointid.simulate.hbm.sweep`)
+    extrapolates through four points and solves well-predicted runs together.
+    """
+    out = []
+    for f in np.asarray(frequencies, float):
+        guess = None
+        if len(out) >= 2:
+            p0, p1 = out[-2], out[-1]
+            f0, f1 = frequency(p0), frequency(p1)
+            n = min(p0.joint.shape[-1], p1.joint.shape[-1])
+            s = (f - f1) / (f1 - f0) if f1 != f0 else 0.0
+            guess = p1.joint[:, :n] + s * (p1.joint[:, :n] - p0.joint[:, :n])
+        elif out:
+            guess = out[-1]
+        out.append(solve(f, guess))
+    return out
 
 
 class _Evaluation(dict):
@@ -487,18 +514,8 @@ class CondensedHB:
 
     @single_threaded
     def sweep(self, omegas, force, n_harmonics=9, **kw):
-        """:meth:`solve` at each frequency in turn, each started from a secant predictor."""
-        out = []
-        for w in np.asarray(omegas, float):
-            guess = None
-            if len(out) >= 2:
-                w0, w1 = out[-2].omega, out[-1].omega
-                s = (w - w1) / (w1 - w0) if w1 != w0 else 0.0
-                guess = out[-1].joint + s * (out[-1].joint - out[-2].joint)
-            elif out:
-                guess = out[-1]
-            out.append(self.solve(w, force, n_harmonics, guess=guess, **kw))
-        return out
+        """:meth:`solve` at each frequency in turn, each started from a secant predictor (:func:`warm_sweep`)."""
+        return warm_sweep(lambda w, guess: self.solve(w, force, n_harmonics, guess=guess, **kw), omegas)
 
     # --- continuation ---------------------------------------------------------------
     @single_threaded
