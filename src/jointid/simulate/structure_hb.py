@@ -39,16 +39,15 @@ Harmonic coefficient vectors follow :mod:`jointid.conventions`:
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._blas import single_threaded
 from ..conventions import n_coefficients
-from ..errors import ConvergenceError, ConvergenceWarning, StructureError
+from ..errors import ConvergenceError, StructureError
 from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
-from .hbm.continuation import _accept, _Arclength, _locate_fold, _step
+from .hbm.continuation import _Arclength, _follow
 from .newton import damped_newton
 
 __all__ = [
@@ -542,57 +541,17 @@ class CondensedHB:
         prob.F = zs
         arc = _Arclength(prob, w0, w1, zs, tol)
         first = self.solve(w0, Fc, H, n_time=N, tol=tol)
-        z = first.joint.reshape(-1)
-        pts = [first]
-        folds = []
-        y = arc.join(z, w0)
-        _, Gy, _ = arc.eval(y)
-        e_nu = np.zeros(y.size)
-        e_nu[-1] = 1.0
-        t = arc.tangent(Gy, e_nu)
-        ds_min = 1e-9
-        cos_max = math.cos(math.radians(20.0))
-        steps = 0
-        hist_s, hist_y = [0.0], [y]
-        while True:
-            steps += 1
-            if steps > max_steps:
-                warnings.warn(
-                    f"continuation stopped after {max_steps} steps at {pts[-1].frequency_hz:.6g} Hz before the end "
-                    f"of the range; returning the partial curve", ConvergenceWarning, stacklevel=3)
-                break
-            out = _step(arc, y, t, ds, hist_s, hist_y, True, cos_max, ds_min)
-            if out is not None:
-                y_new, t_new, ev_new, its = out
-            if out is None:
-                ds *= 0.5
-                if ds < ds_min:
-                    raise ConvergenceError(
-                        f"continuation stalled at {pts[-1].frequency_hz:.6g} Hz: step size fell below {ds_min:g}; "
-                        "try more harmonics or a smaller range")
-                continue
-            if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0.0:
-                fold = _locate_fold(arc, y, t, ds, t_new)
-                if fold is not None:
-                    yf, evf, itf = fold
-                    zf, wf = arc.split(yf)
-                    folds.append(len(pts))
-                    pts.append(self.point(zf, wf, Fc, H, N, evf["ev"], itf, evf["err"]))
-            nu = y_new[-1]
-            if nu > 1.0 or nu < 0.0:
-                nu_end = 1.0 if nu > 1.0 else 0.0
-                frac = (nu_end - y[-1]) / (nu - y[-1])
-                z_end, _ = arc.split(y + frac * (y_new - y))
-                w_end = w1 if nu_end == 1.0 else w0
-                try:
-                    pts.append(self.solve(w_end, Fc, H, n_time=N, guess=z_end, tol=tol))
-                except ConvergenceError:
-                    pass
-                break
-            z_new, w_new = arc.split(y_new)
-            pts.append(self.point(z_new, w_new, Fc, H, N, ev_new["ev"], its, ev_new["err"]))
-            hist_s, hist_y, ds = _accept(hist_s, hist_y, y, y_new, its, ds, ds_max)
-            y, t = y_new, t_new
+        pts, folds = _follow(
+            arc, first, first.joint.reshape(-1), w0, w1, ds, ds_max, max_steps,
+            extrapolate=True,
+            point=lambda z, w, ev, its: self.point(z, w, Fc, H, N, ev["ev"], its, ev["err"]),
+            land=lambda z, w: self.solve(w, Fc, H, n_time=N, guess=z, tol=tol),
+            stopped=lambda last: (f"continuation stopped after {max_steps} steps at {last.frequency_hz:.6g} Hz "
+                                  "before the end of the range; returning the partial curve"),
+            stalled=lambda last, ds_min: (f"continuation stalled at {last.frequency_hz:.6g} Hz: step size fell "
+                                          f"below {ds_min:g}; try more harmonics or a smaller range"),
+            stacklevel=4,
+        )
         return HBCurve(tuple(pts), tuple(folds))
 
 

@@ -135,9 +135,39 @@ def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
     zs = _amplitude_scale(problem, w0, w1, tol)
     arc = _Arclength(problem, w0, w1, zs, tol)
     z, ev, it = problem.fresh(w0, tol)
-    pts = [(w0, z, ev, it)]
+
+    def land(z_end, w_end):
+        z_e, ev_e, it_e = problem.newton(z_end, w_end, tol)
+        return (w_end, z_e, ev_e, it_e)
+
+    return _follow(
+        arc, (w0, z, ev, it), z, w0, w1, ds, ds_max, max_steps,
+        extrapolate=not problem.closure,
+        point=lambda z, w, ev, its: (w, z, ev, its),
+        land=land,
+        stopped=lambda last: (f"continuation stopped after {max_steps} steps at omega={last[0]:.6g} rad/s "
+                              f"before reaching the end of the range ({w0:.6g}, {w1:.6g}); returning the partial curve"),
+        stalled=lambda last, ds_min: (f"continuation stalled at omega={last[0]:.6g} rad/s (F={problem.F:.6g}): "
+                                      f"step size fell below {ds_min:g}; try more harmonics or a smaller range"),
+        stacklevel=6,  # _follow, _continuation, frequency_response, errstate, single_threaded: the caller
+    )
+
+
+def _follow(arc, first, z0, w0, w1, ds, ds_max, max_steps, *, extrapolate, point, land, stopped, stalled, stacklevel):
+    """The pseudo-arclength loop of both harmonic-balance engines, from ``first`` (a curve point,
+    joint or harmonic unknowns ``z0`` at ``w0``) until the curve leaves ``[w0, w1]``.
+
+    Each step is :func:`_step` (halved when it fails, until ``1e-9``: ``ConvergenceError`` with
+    ``stalled(last point, 1e-9)``); a sign change of the tangent's ``omega`` component is a fold,
+    located by :func:`_locate_fold` and added to the curve; the end of the range is reached by
+    interpolation and ``land(z, omega_end)`` (a point, or ``ConvergenceError``: the curve ends
+    before it); step lengths follow :func:`_accept`.  ``point(z, omega, evaluation, iterations)``
+    makes the curve's points.  After ``max_steps`` a ``ConvergenceWarning`` with ``stopped(last
+    point)`` and the partial curve.  Returns ``(points, fold indices)``.
+    """
+    pts = [first]
     folds = []
-    y = arc.join(z, w0)
+    y = arc.join(z0, w0)
     _, Gy, _ = arc.eval(y)
     e_nu = np.zeros(y.size)
     e_nu[-1] = 1.0
@@ -149,24 +179,15 @@ def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
     while True:
         steps += 1
         if steps > max_steps:
-            warnings.warn(
-                f"continuation stopped after {max_steps} steps at omega={pts[-1][0]:.6g} rad/s "
-                f"before reaching the end of the range ({w0:.6g}, {w1:.6g}); returning the partial curve",
-                ConvergenceWarning,
-                stacklevel=4,
-            )
+            warnings.warn(stopped(pts[-1]), ConvergenceWarning, stacklevel=stacklevel)
             break
-        out = _step(arc, y, t, ds, hist_s, hist_y, not problem.closure, cos_max, ds_min)
-        if out is not None:
-            y_new, t_new, ev_new, its = out
+        out = _step(arc, y, t, ds, hist_s, hist_y, extrapolate, cos_max, ds_min)
         if out is None:
             ds *= 0.5
             if ds < ds_min:
-                raise ConvergenceError(
-                    f"continuation stalled at omega={pts[-1][0]:.6g} rad/s (F={problem.F:.6g}): "
-                    f"step size fell below {ds_min:g}; try more harmonics or a smaller range"
-                )
+                raise ConvergenceError(stalled(pts[-1], ds_min))
             continue
+        y_new, t_new, ev_new, its = out
         # fold: the omega component of the tangent changes sign
         if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0.0:
             fold = _locate_fold(arc, y, t, ds, t_new)
@@ -174,23 +195,20 @@ def _continuation(problem, w0, w1, tol, ds, ds_max, max_steps):
                 yf, evf, itf = fold
                 zf, wf = arc.split(yf)
                 folds.append(len(pts))
-                pts.append((wf, zf, evf, itf))
+                pts.append(point(zf, wf, evf, itf))
         nu = y_new[-1]
         if nu > 1.0 or nu < 0.0:
             # land exactly on the end of the range by interpolation + fixed-frequency Newton
             nu_end = 1.0 if nu > 1.0 else 0.0
             frac = (nu_end - y[-1]) / (nu - y[-1])
-            y_end = y + frac * (y_new - y)
-            z_end, w_end = arc.split(y_end)
-            w_end = w1 if nu_end == 1.0 else w0
+            z_end, _ = arc.split(y + frac * (y_new - y))
             try:
-                z_e, ev_e, it_e = problem.newton(z_end, w_end, tol)
-                pts.append((w_end, z_e, ev_e, it_e))
+                pts.append(land(z_end, w1 if nu_end == 1.0 else w0))
             except ConvergenceError:
                 pass
             break
         z_new, w_new = arc.split(y_new)
-        pts.append((w_new, z_new, ev_new, its))
+        pts.append(point(z_new, w_new, ev_new, its))
         hist_s, hist_y, ds = _accept(hist_s, hist_y, y, y_new, its, ds, ds_max)
         y, t = y_new, t_new
     return pts, folds
