@@ -48,6 +48,7 @@ from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
 from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
 from .hbm.continuation import _Arclength, _follow
+from .hbm.kernels import hill_companion
 from .newton import damped_newton
 
 __all__ = [
@@ -293,32 +294,42 @@ class CondensedHB:
         """
         E, Dm, P = aft_basis(H, int(n_time), "F")
         nj, n = U.shape
+        F = np.empty_like(U)
+        J = np.zeros((nj, n, nj, n)) if jacobian else None
+        Jw = np.zeros((nj, n)) if domega else None
+        for j, uj, vj, f, D, Dv in self._laws_on(U, omega, H, n_time, jacobian):
+            if jacobian:
+                Jj = P @ D @ E
+                if Dv is not None:
+                    Jj = Jj + omega * (P @ Dv @ E @ Dm)
+                J[j, :, j, :] = Jj
+                if domega and Dv is not None:
+                    Jw[j] = P @ (Dv @ (vj / omega))
+            F[j] = (f - self.k_model[j] * uj) @ P.T
+        return F, (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
+
+    def _laws_on(self, U, omega, H, n_time, jacobian):
+        """Each joint law on the samples of one period of ``U``: ``(j, u_j, v_j, f, D, Dv)`` with the
+        force samples ``f``, ``D = df/du - k_model`` and ``Dv = df/dv`` (rate-dependent laws; else
+        None), the derivatives only with ``jacobian``.  Shared by :meth:`aft` and
+        :meth:`hill_eigenvalues`."""
+        E, Dm, _ = aft_basis(H, int(n_time), "F")
         u = U @ E.T  # (n_j, N)
         v = None
         if self._rate:
             Ud = U @ Dm.T  # d/dtau coefficients
             v = omega * (Ud @ E.T)
-        F = np.empty_like(U)
-        J = np.zeros((nj, n, nj, n)) if jacobian else None
-        Jw = np.zeros((nj, n)) if domega else None
         for j, law in enumerate(self.laws):
-            K = self.k_model[j]
+            Dv = D = None
             if getattr(law, "rate_dependent", False):
                 f, Du, Dv = law.aft(u[j], v[j], velocity_jacobian=True, jacobian=jacobian)
+                Dv = None if Dv is None or not jacobian else np.asarray(Dv)
             else:
                 f, Du = law.aft(u[j], jacobian=jacobian)
-                Dv = None
             if jacobian:
                 D = np.array(Du, float)
-                D[np.diag_indices_from(D)] -= K
-                Jj = P @ D @ E
-                if Dv is not None:
-                    Jj = Jj + omega * (P @ np.asarray(Dv) @ E @ Dm)
-                J[j, :, j, :] = Jj
-                if domega and Dv is not None:
-                    Jw[j] = P @ (np.asarray(Dv) @ (v[j] / omega))
-            F[j] = (f - K * u[j]) @ P.T
-        return F, (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
+                D[np.diag_indices_from(D)] -= self.k_model[j]
+            yield j, u[j], (None if v is None else v[j]), f, D, Dv
 
     def _force_vector(self, force, H):
         n = n_coefficients(H)
@@ -402,19 +413,11 @@ class CondensedHB:
         w = point.omega
         E, Dm, P = aft_basis(H, N, "F")
         nm, nj = self.n_modes, self.n_joints
-        U = point.joint
-        u = U @ E.T
-        v = w * ((U @ Dm.T) @ E.T) if self._rate else None
         Ju = np.zeros((nj * n, nj * n))
         Jv = np.zeros((nj * n, nj * n))
-        for j, law in enumerate(self.laws):
-            if getattr(law, "rate_dependent", False):
-                _, Du, Dv = law.aft(u[j], v[j], velocity_jacobian=True, jacobian=True)
-                Jv[j * n:(j + 1) * n, j * n:(j + 1) * n] = P @ np.asarray(Dv) @ E
-            else:
-                _, Du = law.aft(u[j], jacobian=True)
-            D = np.array(Du, float)
-            D[np.diag_indices_from(D)] -= self.k_model[j]
+        for j, _, _, _, D, Dv in self._laws_on(point.joint, w, H, N, True):
+            if Dv is not None:
+                Jv[j * n:(j + 1) * n, j * n:(j + 1) * n] = P @ Dv @ E
             Ju[j * n:(j + 1) * n, j * n:(j + 1) * n] = P @ D @ E
         flex = ~self._rigid  # rigid-body modes carry no joint motion: they decouple (exponents 0)
         nm = int(flex.sum())
@@ -426,11 +429,7 @@ class CondensedHB:
         C1 = 2 * Dt + C + T.T @ Jv @ T
         K0 = Dt @ Dt + C @ Dt + K + T.T @ (Ju @ T + Jv @ T @ Dt)
         m = nm * n
-        A = np.zeros((2 * m, 2 * m))
-        A[:m, m:] = np.eye(m)
-        A[m:, :m] = -K0
-        A[m:, m:] = -C1
-        lam, vec = np.linalg.eig(A)
+        lam, vec = np.linalg.eig(hill_companion(K0, C1))
         # every exponent appears once per harmonic (lambda + i k omega, its vector shifted by k
         # harmonics); keep the copy whose vector sits lowest in the harmonics
         kidx = np.tile(np.concatenate([[0.0], np.repeat(np.arange(1.0, H + 1), 2)]), nm)

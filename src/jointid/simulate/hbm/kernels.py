@@ -176,6 +176,18 @@ def _solve(A, b):
     return x
 
 
+def hill_companion(K0, C1):
+    """Companion matrix ``[[0, I], [-K0, -C1]]`` of Hill's quadratic eigenproblem
+    ``(lambda^2 I + lambda C1 + K0) x = 0`` (stacks of matrices too): its eigenvalues are the
+    ``lambda`` and its eigenvectors ``[x, lambda x]``.  Both engines' Hill methods solve it."""
+    n = K0.shape[-1]
+    A = np.zeros(K0.shape[:-2] + (2 * n, 2 * n))
+    A[..., :n, n:] = np.eye(n)
+    A[..., n:, :n] = -K0
+    A[..., n:, n:] = -C1
+    return A
+
+
 def _matmul2(A, B):
     """Products of stacks of 2x2 matrices (written out: ``@`` on 2x2 blocks is slower)."""
     C = np.empty(np.broadcast_shapes(A.shape, B.shape))

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from ...conventions import harmonic_index
-from .kernels import _cos_sin, _expm2, _gauss_basis, _gauss_nodes, _matmul2, _product_gather
+from .kernels import _cos_sin, _expm2, _gauss_basis, _gauss_nodes, _matmul2, _product_gather, hill_companion
 
 
 class _StabilityMixin:
@@ -210,11 +210,7 @@ class _StabilityMixin:
                 Cq = Sq[:, i1] * w1 + Sq[:, i2] * w2
                 J0 = Cq + w[:, None, None] * (Cv @ Db)
                 J0[:, np.arange(n), np.arange(n)] -= (w * w)[:, None] * kk[idx]
-                A = np.zeros((c.shape[0], 2 * n, 2 * n))
-                A[:, :n, n:] = np.eye(n)
-                A[:, n:, :n] = -J0
-                A[:, n:, n:] = -(2.0 * w[:, None, None] * Db + Cv)
-                lams.append(np.linalg.eigvals(A))
+                lams.append(np.linalg.eigvals(hill_companion(J0, 2.0 * w[:, None, None] * Db + Cv)))
             lam = np.concatenate(lams, axis=1)
             lam = np.take_along_axis(lam, np.argsort(np.abs(lam.imag), axis=1, kind="stable")[:, :2], axis=1)
             out[sl] = np.take_along_axis(lam, np.argsort(-lam.real, axis=1, kind="stable"), axis=1)
