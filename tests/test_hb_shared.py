@@ -39,3 +39,17 @@ def test_both_continuations_warn_at_the_callers_line_when_stopped():
     assert len(msgs) == 2 and all(w.filename == __file__ for w in msgs)
     assert len(curve) == 4 and len(resp) == 4  # the start and three steps
     assert all("partial curve" in str(w.message) for w in msgs)
+
+
+def test_the_self_excited_denominator_is_the_plain_one_to_the_bit_at_xi_zero():
+    """``modal_denominator`` serves the FRFs (xi = 0) and the nonlinear modes (xi != 0) with one
+    formula; at xi = 0 it equals ``Omega^2 - w^2 + 2 i zeta Omega w`` bit for bit (signed zeros too)."""
+    from jointid.numerics.receptance import modal_denominator
+
+    rng = np.random.default_rng(7)
+    om, ze, w = rng.uniform(1, 1e4, (30, 1)), rng.uniform(0, 0.3, (30, 1)), rng.uniform(0, 2e4, (1, 25))
+    ze[0], w[0, 0] = 0.0, 0.0
+    plain = om**2 - w**2 + 2j * ze * om * w
+    assert np.array_equal(modal_denominator(om, ze, w).view(float), plain.view(float))
+    xi = 3.0
+    np.testing.assert_allclose(modal_denominator(om, ze, w, xi), plain - 1j * xi * w, rtol=1e-13)

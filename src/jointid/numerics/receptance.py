@@ -12,8 +12,11 @@ from __future__ import annotations
 __all__ = ["modal_denominator"]
 
 
-def modal_denominator(omega, zeta, w):
-    """``Omega^2 - w^2 + 2 i zeta Omega w``, broadcast over the arguments (numpy arrays or floats).
+def modal_denominator(omega, zeta, w, xi=0.0):
+    """``Omega^2 - w^2 + i (2 zeta Omega - xi) w``, broadcast over the arguments (numpy arrays or floats).
+
+    ``xi``: a self-excitation ``-xi q'`` (the nonlinear modes of :mod:`jointid.simulate.nlmodes`);
+    with ``xi = 0`` the values are those of ``Omega^2 - w^2 + 2 i zeta Omega w`` to the bit.
 
     Parameters
     ----------
@@ -23,10 +26,12 @@ def modal_denominator(omega, zeta, w):
         Damping ratios.
     w : float or ndarray
         Angular frequencies [rad/s].
+    xi : float, optional
+        Self-excitation coefficient [1/s].
 
     Examples
     --------
     >>> complex(modal_denominator(2.0, 0.05, 1.0))
     (3+0.2j)
     """
-    return omega**2 - w**2 + 2j * zeta * omega * w
+    return omega**2 - w**2 + 1j * (2 * zeta * omega - xi) * w

@@ -47,6 +47,7 @@ from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
 from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
+from ..numerics.receptance import modal_denominator
 from .hbm.continuation import _Arclength, _follow
 from .hbm.kernels import hill_companion
 from .newton import damped_newton
@@ -250,7 +251,7 @@ class CondensedHB:
         ``2 zeta Omega`` becomes ``2 zeta Omega - xi``.
         """
         w = np.asarray(w, float)[..., None]
-        den = self.omega**2 - w**2 + 1j * (2 * self.zeta * self.omega - xi) * w
+        den = modal_denominator(self.omega, self.zeta, w, xi)
         with np.errstate(divide="ignore", invalid="ignore"):
             out = 1.0 / den
         return np.where(den == 0, 0.0, out)
