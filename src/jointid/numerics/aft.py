@@ -26,7 +26,7 @@ import numpy as np
 
 from ..conventions import n_coefficients
 
-__all__ = ["aft_basis", "aft_samples", "basis_at", "to_complex", "to_real"]
+__all__ = ["aft_basis", "aft_samples", "basis_at", "resize_harmonics", "to_complex", "to_real"]
 
 
 def _readonly(a):
@@ -90,6 +90,20 @@ def aft_samples(n_harmonics: int, per_harmonic: int, minimum: int = 1) -> int:
     """
     m = max(int(per_harmonic) * (int(n_harmonics) + 1), int(minimum), 1)
     return 1 << (m - 1).bit_length()
+
+
+def resize_harmonics(c, n_harmonics: int) -> np.ndarray:
+    """Coefficient vectors ``(..., m)`` cut or padded with zeros to ``(..., 2H + 1)`` (a new array).
+
+    >>> resize_harmonics([1.0, 2.0, 3.0], 2).tolist(), resize_harmonics([1.0, 2.0, 3.0], 0).tolist()
+    ([1.0, 2.0, 3.0, 0.0, 0.0], [1.0])
+    """
+    c = np.asarray(c, float)
+    n = n_coefficients(n_harmonics)
+    out = np.zeros(c.shape[:-1] + (n,))
+    m = min(n, c.shape[-1])
+    out[..., :m] = c[..., :m]
+    return out
 
 
 def to_complex(c):

@@ -37,7 +37,7 @@ import numpy as np
 from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
-from ..numerics.aft import to_complex, to_real
+from ..numerics.aft import resize_harmonics, to_complex, to_real
 from .newton import damped_newton
 from .structure_hb import CondensedHB, JointMotion, JointMotionCurve, default_n_time
 
@@ -235,14 +235,11 @@ def epmc_point(engine: CondensedHB, mode: int, amplitude: float, n_harmonics: in
 
 
 def _start(prob: _Epmc, a, guess):
-    n, nj = prob.n, prob.e.n_joints
-    U = np.zeros((nj, n))
     if guess is None:
+        U = np.zeros((prob.e.n_joints, prob.n))
         U[:, 1] = prob.psi_r * a
         return U.reshape(-1), prob.Or, prob.dr
-    g = np.asarray(guess.joint, float) * (a / guess.amplitude)
-    mm = min(n, g.shape[-1])
-    U[:, :mm] = g[:, :mm]
+    U = resize_harmonics(np.asarray(guess.joint, float) * (a / guess.amplitude), prob.H)
     return U.reshape(-1), float(guess.omega), float(guess.xi)
 
 

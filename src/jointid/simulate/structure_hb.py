@@ -46,7 +46,7 @@ import numpy as np
 from .._blas import single_threaded
 from ..conventions import n_coefficients
 from ..errors import ConvergenceError, StructureError
-from ..numerics.aft import aft_basis, aft_samples, to_complex, to_real
+from ..numerics.aft import aft_basis, aft_samples, resize_harmonics, to_complex, to_real
 from ..numerics.receptance import modal_denominator
 from .hbm.continuation import _Arclength, _follow
 from .hbm.kernels import hill_companion
@@ -333,12 +333,7 @@ class CondensedHB:
             yield j, u[j], (None if v is None else v[j]), f, D, Dv
 
     def _force_vector(self, force, H):
-        n = n_coefficients(H)
-        Fc = np.zeros(n)
-        f_in = np.asarray(force, float).ravel()
-        m = min(n, f_in.size)
-        Fc[:m] = f_in[:m]
-        return Fc
+        return resize_harmonics(np.ravel(force), H)
 
     def evaluate(self, U, omega, force, H, n_time, jacobian=True, domega=False):
         """Residual ``R = U - b + G F(U)`` of the condensed balance, with its derivatives.
@@ -489,10 +484,7 @@ class CondensedHB:
             U = b.copy()
         else:
             g = guess.joint if isinstance(guess, HBPoint) else np.asarray(guess, float).reshape(nj, -1)
-            U = np.zeros((nj, n))
-            mm = min(n, g.shape[-1])
-            U[:, :mm] = g[:, :mm]
-            U = U.reshape(-1)
+            U = resize_harmonics(g, H).reshape(-1)
         scale = max(np.linalg.norm(b), 1e-300)
 
         def error(r, Uv):

@@ -15,6 +15,7 @@ from scipy import optimize
 
 from ...conventions import harmonic_index, n_coefficients
 from ...errors import ConvergenceError, RecordError
+from ...numerics.aft import resize_harmonics
 from ...identify.terms import STANDARD_TERMS
 from ..model import SingleModeModel
 from .batch import _BatchMixin
@@ -138,11 +139,7 @@ class _Problem(_BatchMixin, _StabilityMixin):
         return out
 
     def reduce(self, coefficients):
-        c = np.asarray(coefficients, float)
-        full = np.zeros(self.n)
-        m = min(c.size, self.n)
-        full[:m] = c[:m]
-        return full[self.active]
+        return resize_harmonics(coefficients, self.H)[self.active]
 
     def peak(self, x):
         return _peak(x, self.kh, self.a_idx, self.b_idx, self.const_idx, self.E_dense)
