@@ -21,8 +21,8 @@ from ..errors import IdentificationError, JointidError, JointidWarning, where
 from ..identify.fsm import ForceStateMapping, RecordFit
 from ..identify.terms import library
 from ..io.campaign import RecordSpec, read_record
-from ..signal.checks import (Flag, check_live, clipping_flag, equivalent_damping, record_flags, scale_outliers,
-                             trend_outliers)
+from ..signal.checks import (Flag, check_live, clipping_flag, equivalent_damping, monotone_outliers, record_flags,
+                             scale_outliers, trend_outliers)
 from ..signal.harmonics import StateSignals, steady_state_signals
 
 __all__ = ["IdentifySettings", "RecordOutcome", "process_record", "process_all", "flag_group_outliers", "Flag"]
@@ -242,7 +242,9 @@ def flag_group_outliers(outcomes) -> list:
     or 8 times above: a damping law growing faster than a power law lies above the line of a few
     records) and by more than 6 of its standard errors (``scale_outlier``:
     acceleration in g instead of m/s^2 scales the identified damping by about 9.81 and leaves
-    ``omega1`` nearly unchanged near resonance; a wrong channel).  Each limit is also at least 6 robust standard deviations of the group's
+    ``omega1`` nearly unchanged near resonance; a wrong channel), unless it lies below the trend at the
+    group's smaller amplitudes in a way no factor on the acceleration explains and a sticking friction joint does
+    (:func:`_damping_outliers`).  Each limit is also at least 6 robust standard deviations of the group's
     log values, so only a record far outside the group's own spread is flagged.  Outliers of the pooled fits themselves (records
     the group model does not explain) are to be added here, after the pooled fit.
 
@@ -274,9 +276,7 @@ def flag_group_outliers(outcomes) -> list:
                     outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
         freq = scale_outliers({i: outcomes[i].signals.frequency_hz for i in members}, factor=3.0)
         omega = scale_outliers({i: outcomes[i].fit.omega1 for i in members}, factor=1.5)
-        ceq = {i: _equivalent_damping(outcomes[i]) for i in members}
-        damping = trend_outliers({i: outcomes[i].fit.q_max for i in members}, {i: v[0] for i, v in ceq.items()},
-                                 factor=(3.0, 8.0), stderr={i: v[1] for i, v in ceq.items()})
+        damping = _damping_outliers(outcomes, members)
         for i, (ratio, median) in freq.items():
             f = Flag("time_unit", f"excitation frequency {outcomes[i].signals.frequency_hz:.6g} Hz is {ratio:.4g} "
                                   f"times the group's median {median:.6g} Hz; time in ms instead of s?",
@@ -288,16 +288,62 @@ def flag_group_outliers(outcomes) -> list:
                                       f"a wrong channel or another structure?",
                      {"omega1": outcomes[i].fit.omega1, "group_median_omega1": median, "ratio": ratio})
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
-        for i, (ratio, median) in damping.items():
-            c, se = ceq[i]
+        for i, (c, se, ratio, median, scale, broken) in damping.items():
             pm = f" (± {se:.2g})" if se is not None and np.isfinite(se) else ""
+            why = "".join([f"; the acceleration times {1 / scale:.3g} would put the record on it" if scale else "",
+                           f"; its energy dissipated per cycle over q_max is {broken:.3g} times off that of a record "
+                           f"with {'a smaller' if ratio < 1 else 'a larger'} q_max (a joint's does not fall as q_max "
+                           f"grows)" if broken else ""])
             f = Flag("scale_outlier", f"equivalent viscous damping c_eq = {c:.6g}{pm} is {ratio:.4g} times the "
-                                      f"group's trend of c_eq against q_max ({median:.6g} there); acceleration in g "
-                                      f"instead of m/s^2 or a mis-scaled channel?",
+                                      f"group's trend of c_eq against q_max ({median:.6g} there){why}: acceleration "
+                                      f"or force in g instead of m/s^2 or N, or a mis-scaled channel?",
                      {"c": outcomes[i].fit.c, "c_equivalent": c, "c_equivalent_stderr": se, "group_trend_c": median,
-                      "ratio": ratio})
+                      "ratio": ratio, "acceleration_scale": scale, "dissipation_ratio": broken})
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
     return outcomes
+
+
+def _damping_outliers(outcomes, members) -> dict:
+    """Records of a group off its trend of ``c_eq`` against ``q_max``, less those a joint's physics explains.
+
+    A record off the group's power-law trend of ``c_eq`` against ``q_max`` (:func:`trend_outliers`:
+    3 times below it or 8 times above, by 6 standard errors) is a scale outlier, except one *below*
+    the trend at the group's smaller amplitudes (``q_max`` at most the group's median) when
+
+    - no factor of 3 or more on its acceleration puts it on the trend (such a factor multiplies
+      ``q_max`` by itself and ``c_eq`` by its inverse: ``invariant=-1``), and
+    - its energy dissipated per cycle over its amplitude, ``W / (pi q_max) = c_eq omega q_max``, is
+      not 3 times below that of a record with a smaller amplitude (:func:`monotone_outliers`: for
+      viscous, polynomial and friction damping it does not fall as the amplitude grows).
+
+    That record is what a friction joint does as it starts to slip: it dissipates far less at
+    the group's smallest amplitudes than the slipping records' power law says (a Jenkins joint:
+    nothing beyond the viscous damping below its slip amplitude).  A force wrong by a factor on
+    such a record is not told from it.
+
+    Returns ``{index: (c_eq, stderr, ratio to the trend, trend value, acceleration scale or None,
+    dissipation ratio or None)}``.
+    """
+    ceq = {i: _equivalent_damping(outcomes[i]) for i in members}
+    q = {i: outcomes[i].fit.q_max for i in members}
+    c = {i: v[0] for i, v in ceq.items()}
+    se = {i: v[1] for i, v in ceq.items()}
+    kw = {"factor": (3.0, 8.0), "stderr": se}
+    vertical = trend_outliers(q, c, **kw)
+    if not vertical:
+        return {}
+    scaled = trend_outliers(q, c, invariant=-1.0, **kw)
+    w = {i: outcomes[i].signals.omega * q[i] for i in members}
+    dissipation = monotone_outliers(q, {i: c[i] * w[i] if c[i] is not None else None for i in members},
+                                    stderr={i: se[i] * w[i] if se[i] is not None else None for i in members},
+                                    factor=(3.0, 8.0))
+    small = float(np.median([v for v in q.values() if v is not None and np.isfinite(v)]))
+    out = {}
+    for i, (ratio, trend, _) in vertical.items():
+        if ratio < 1 and q[i] <= small and i not in scaled and i not in dissipation:
+            continue  # a joint that sticks at the smaller amplitudes
+        out[i] = (c[i], se[i], ratio, trend, scaled[i][2] if i in scaled else None, dissipation.get(i))
+    return out
 
 
 def _equivalent_damping(outcome):

@@ -53,7 +53,7 @@ import numpy as np
 from ..errors import RecordError
 from .harmonics import _blocks, fit_harmonics
 
-__all__ = ["Flag", "check_live", "clipping_flag", "record_flags", "scale_outliers", "trend_outliers",
+__all__ = ["Flag", "check_live", "clipping_flag", "record_flags", "scale_outliers", "trend_outliers", "monotone_outliers",
            "equivalent_damping", "Z_LIMIT"]
 
 #: Noise z-score above which a statistic is called significant (white noise: P(|z| > 6) < 1e-8).
@@ -421,7 +421,8 @@ def _theil_sen(lx, ly):
     return slope, float(np.median(ly - slope * lx))
 
 
-def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60, stderr=None, _log_se=None) -> dict:
+def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60, stderr=None, invariant=None,
+                   _log_se=None) -> dict:
     """Members of a group far off the group's power-law trend ``y ~ x^p``.
 
     A straight line through ``(log x, log y)`` of the other members is fitted robustly
@@ -436,6 +437,17 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
     in other units falls off that law.  Groups of more than ``max_pairs_n`` members use one
     line through all of them (one outlier cannot move it).
 
+    With ``invariant``, the check asks the question a unit error poses: a factor ``s`` on one
+    channel moves a member along a known direction, ``(log x, log y) + log s * (1, invariant)``
+    (for ``c_eq`` against ``q_max`` a factor on the acceleration multiplies ``q_max`` by ``s`` and
+    ``c_eq`` by ``1 / s``: ``invariant = -1``, the product ``c_eq q_max`` is unchanged).  The factor
+    that takes the member back onto the line, ``s`` with ``log s = r / (invariant - p)`` for a
+    residual ``r`` and slope ``p``, must then also exceed ``factor``, with the line's
+    extrapolation uncertainty taken where the member would land.  On a flat trend that is the
+    residual itself; where ``y`` grows steeply with ``x`` (the dissipation of a friction joint
+    setting in as it starts to slip) a record of a sticking joint below the others' amplitudes
+    lies below their line, yet no unit factor puts it on that line inside their range.
+
     Parameters
     ----------
     x, y : mapping key -> float
@@ -449,10 +461,15 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
         ``Z_LIMIT`` of its standard errors off the trend (a value the record does not
         resolve is no outlier), and members whose ``y`` is not resolved to better than a
         factor of 2 (``stderr > y / 2``) do not enter the trend of the others.
+    invariant : float, optional
+        Log-log slope along which a scale error moves a member (above); ``None``: the
+        residual alone is judged.
 
     Returns
     -------
-    dict key -> (ratio to the trend, trend value)
+    dict key -> (ratio to the trend, trend value, scale factor)
+        The scale factor is the factor along ``invariant`` that takes the member onto the
+        trend (the ratio itself without ``invariant``).
 
     Examples
     --------
@@ -470,7 +487,8 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
         out = {}
         if len(resolved) >= min_records:
             out = trend_outliers(x, {k: y[k] for k in resolved}, factor=factor, min_records=min_records,
-                                 max_pairs_n=max_pairs_n, _log_se={k: se[k] / y[k] for k in resolved})
+                                 max_pairs_n=max_pairs_n, invariant=invariant,
+                                 _log_se={k: se[k] / y[k] for k in resolved})
         return {k: v for k, v in out.items() if abs(y[k] - v[1]) > Z_LIMIT * se[k]}
     n = len(keys)
     if n < min_records:
@@ -483,15 +501,27 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
     def beyond(m, slope, icpt, mad, ox, ose):
         """Residual of member ``m`` against the line, less the line's own uncertainty where it is
         extrapolated beyond the others' range of ``x`` (``SLOPE_Z`` standard errors of the slope,
-        from the others' scatter about it or their own standard errors, whichever is larger)."""
+        from the others' scatter about it or their own standard errors, whichever is larger); and
+        the log of the scale factor along ``invariant`` that takes it onto the line, less the same
+        uncertainty where it lands."""
         lo, hi = (order[1], order[-1]) if lx[m] == order[0] else (order[0], order[-2] if lx[m] == order[-1] else order[-1])
-        d = abs(lx[m] - min(max(lx[m], lo), hi))
         r = ly[m] - slope * lx[m] - icpt
         sxx = float(np.sum((ox - ox.mean()) ** 2))
         scatter = max(mad, float(np.sqrt(np.mean(ose**2))) if ose.size else 0.0)
         s_slope = scatter / np.sqrt(sxx) if sxx > 0 else np.inf
-        band = SLOPE_Z * s_slope * d if d > 0 else 0.0
-        return float(np.sign(r) * max(abs(r) - band, 0.0)), r, mad
+
+        def band(at):  # the line's uncertainty at log x = at, beyond the others' range
+            d = abs(at - min(max(at, lo), hi))
+            return SLOPE_Z * s_slope * d if d > 0 else 0.0
+
+        vertical = float(np.sign(r) * max(abs(r) - band(lx[m]), 0.0))
+        if invariant is None:
+            return vertical, r, mad, vertical, r
+        gap = float(invariant) - slope  # the direction a scale error moves along, against the line's slope
+        if abs(gap) < 1e-12:  # parallel: no scale factor takes the member onto the line
+            return vertical, r, mad, 0.0, np.inf
+        ls = r / gap  # log s: the member is at (true point) + ls * (1, invariant), the true point on the line
+        return vertical, r, mad, float(np.sign(ls) * max(abs(ls) - band(lx[m] - ls) / abs(gap), 0.0)), ls
 
     if n > max_pairs_n:
         sub = np.linspace(0, n - 1, max_pairs_n).astype(int)  # the line from a spread subset
@@ -508,8 +538,83 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
             fits.append(beyond(m, slope, icpt, 1.4826 * float(np.median(np.abs(r))), lx[others], lse[others]))
     below, above = (factor, factor) if np.isscalar(factor) else factor
     out = {}
-    for k, (rk, r_line, mad) in zip(keys, fits):
-        if abs(rk) > max(np.log(below if rk < 0 else above), Z_LIMIT * mad):
-            rk = r_line
-            out[k] = (float(np.exp(rk)), float(y[k] / np.exp(rk)))
+    for k, (rk, r_line, mad, ls, ls_line) in zip(keys, fits):
+        if abs(rk) > max(np.log(below if rk < 0 else above), Z_LIMIT * mad) and abs(ls) > np.log(below if r_line < 0
+                                                                                                 else above):
+            out[k] = (float(np.exp(r_line)), float(y[k] / np.exp(r_line)), float(np.exp(ls_line)))
+    return out
+
+
+def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3) -> dict:
+    """Members of a group that break the rule "``y`` does not decrease as ``x`` grows" by a large factor.
+
+    A pair of members breaks it when the one with the smaller ``x`` has the larger ``y``, by more
+    than ``factor`` and by more than ``Z_LIMIT`` standard errors of the difference.  Members are
+    taken out one at a time, first the one in the most such pairs (then the one with the largest
+    factor), until no pair is left: one wrong member breaks the rule with many others, each of
+    them only with it.  Used for the energy a joint dissipates per cycle over its amplitude,
+    ``W / (pi q_max) = c_eq omega q_max``: for viscous, Coulomb, polynomial and Masing-type
+    friction damping (Jenkins, Iwan) ``W`` is convex in the amplitude and zero at zero, so
+    ``W / q_max`` does not decrease.  A force in other units multiplies it by the unit's factor at
+    the same amplitude; an acceleration in other units leaves it unchanged and moves the
+    amplitude.
+
+    Parameters
+    ----------
+    x, y : mapping key -> float
+        Positive values (others are ignored); the keys of ``y`` are the members.
+    factor : float or (float, float)
+        Smallest ratio that is flagged, or ``(below, above)``: for a member whose ``y`` is below
+        that of a member with a smaller ``x``, and for one whose ``y`` is above that of a member
+        with a larger ``x``.
+    stderr : mapping key -> float, optional
+        Standard error of each ``y``.
+
+    Returns
+    -------
+    dict key -> factor
+        The largest factor by which the member breaks the rule (> 1).
+
+    Examples
+    --------
+    >>> q = {i: 1e-3 * (i + 1) for i in range(6)}
+    >>> w = {i: 5.0 * q[i] + 0.01 for i in range(6)}
+    >>> w[3] /= 9.81
+    >>> {k: round(v, 3) for k, v in monotone_outliers(q, w, factor=3.0).items()}
+    {3: 8.175}
+    """
+    keys = [k for k in y if k in x and all(v is not None and np.isfinite(v) and v > 0 for v in (x[k], y[k]))]
+    if len(keys) < min_records:
+        return {}
+    below, above = (factor, factor) if np.isscalar(factor) else factor
+    se = {k: float(stderr[k]) if stderr is not None and stderr.get(k) is not None and np.isfinite(stderr[k]) else 0.0
+          for k in keys}
+
+    def breaks(a, b):  # x[a] < x[b] and y[a] > y[b] beyond the factor and the noise: (ratio, which side is odd)
+        if not x[a] < x[b]:
+            a, b = b, a
+        if not x[a] < x[b] or y[a] <= y[b] + Z_LIMIT * float(np.hypot(se[a], se[b])):
+            return None
+        ratio = y[a] / y[b]
+        return ratio if ratio > min(below, above) else None
+
+    pairs = {}
+    for i, a in enumerate(keys):
+        for b in keys[i + 1:]:
+            r = breaks(a, b)
+            if r is not None:
+                pairs[(a, b) if x[a] < x[b] else (b, a)] = r
+    out = {}
+    while pairs:
+        count = {}
+        for (lo, hi), r in pairs.items():
+            for k, side in ((lo, above), (hi, below)):  # lo's y too high (above), hi's y too low (below)
+                if r > side:
+                    n, worst = count.get(k, (0, 1.0))
+                    count[k] = (n + 1, max(worst, r))
+        if not count:
+            break
+        k = max(count, key=lambda m: count[m])
+        out[k] = float(count[k][1])
+        pairs = {p: r for p, r in pairs.items() if k not in p}
     return out

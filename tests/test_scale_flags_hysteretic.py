@@ -1,0 +1,173 @@
+"""The damping scale check on a friction joint: sticking records are physics, a unit error is not.
+
+A Jenkins joint dissipates nothing below its slip amplitude and a lot just above it, so within one force level
+the equivalent viscous damping ``c_eq`` of the dwells below slip is several times below the power-law trend of
+the slipping ones.  The check compared the records' ``c_eq`` with that trend vertically and flagged them as
+``scale_outlier`` (``identify --terms auto`` then exited 1 on a correct Jenkins campaign).  A factor ``s`` on the
+acceleration moves a record along ``(q_max, c_eq) -> (s q_max, c_eq / s)``; the check now asks for the factor
+along that direction that puts the record on the trend.  Ground truth: the time-integrated Jenkins oscillator of
+``test_hysteretic_fsm`` (exact play operator, no harmonic balance of jointid), one force level, 0.5 % noise.
+"""
+
+import math
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from test_hysteretic_fsm import JENKINS, C, K, integrate, sliders_of
+
+from jointid.app.records import (
+    IdentifySettings,
+    _equivalent_damping,
+    flag_group_outliers,
+    process_all,
+    process_record,
+)
+from jointid.identify.hysteretic import first_harmonic_peak
+from jointid.io.campaign import (
+    load_campaign,
+    read_record,
+    write_campaign,
+    write_csv_record,
+)
+from jointid.signal.checks import trend_outliers
+
+LEVEL = 10.0  # the level whose two lowest dwells stay below slip (q_slip = 1 mm)
+SETTINGS = IdentifySettings(terms="q - q^3 + q'")  # the seed terms --terms auto processes the records with
+
+
+@pytest.fixture(scope="module")
+def group(tmp_path_factory):
+    """One Jenkins force level, 13 dwells over +-6 % of its first-harmonic peak, written as a campaign."""
+    fp, _ = first_harmonic_peak(K, C, JENKINS, LEVEL)
+    ws = 2 * np.pi * fp * (1 + 0.06 * np.linspace(-1, 1, 13))
+    sl = sliders_of(JENKINS)
+    t, _, a, err = integrate(K, C, sl.stiffness, sl.slip_displacement, np.full(ws.size, LEVEL), ws, steps=128,
+                             periods=100, record=8, sub=1)
+    assert err.max() < 1e-4
+    rng = np.random.default_rng(7)
+    folder = tmp_path_factory.mktemp("jenkins_group")
+    entries = []
+    for i, w in enumerate(ws):
+        F = LEVEL * np.cos(w * t[i])
+        F = F + 0.005 * np.std(F) * rng.standard_normal(F.size)
+        A = a[i] + 0.005 * np.std(a[i]) * rng.standard_normal(a[i].size)
+        write_csv_record(folder / f"r{i:02d}.csv", t[i], {"force": F, "accel": A})
+        entries.append({"file": f"r{i:02d}.csv", "frequency_hz": float(w / (2 * np.pi)), "force_level": LEVEL,
+                        "preload": "p"})
+    write_campaign(folder, "jenkins group", entries)
+    specs = load_campaign(folder).records
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        outcomes = process_all(specs, SETTINGS, None)
+    assert all(o.ok for o in outcomes)
+    return specs, outcomes
+
+
+def _flags(outcomes):
+    return {i: [f for f in o.flags if f.name == "scale_outlier"] for i, o in enumerate(flag_group_outliers(outcomes))
+            if any(f.name == "scale_outlier" for f in o.flags)}
+
+
+def test_sticking_and_slipping_records_of_a_jenkins_group_are_not_flagged(group):
+    _, outcomes = group
+    ceq = np.array([_equivalent_damping(o)[0] for o in outcomes])
+    q = np.array([o.fit.q_max for o in outcomes])
+    stuck = q < JENKINS.slip_displacement
+    # the physics this test is about: dwells below slip dissipate by the viscous c alone, those above 3-4 times more
+    assert 2 <= stuck.sum() <= 4 and np.allclose(ceq[stuck], C, rtol=0.01)
+    assert ceq[~stuck].max() > 3.5 * C
+    # the vertical comparison with the slipping records' power law (the check before) calls the sticking ones off
+    x, y = dict(enumerate(q)), dict(enumerate(ceq))
+    se = {i: _equivalent_damping(o)[1] for i, o in enumerate(outcomes)}
+    assert set(trend_outliers(x, y, factor=(3.0, 8.0), stderr=se)) == set(np.flatnonzero(stuck))
+    assert trend_outliers(x, y, factor=(3.0, 8.0), stderr=se, invariant=-1.0) == {}
+    assert _flags(outcomes) == {}
+
+
+def _rescaled(specs, outcomes, i, factor, tmp_path, channel="accel"):
+    """The outcomes with record ``i``'s ``channel`` multiplied by ``factor`` (written to a copy)."""
+    d = read_record(specs[i])
+    cols = {"force": d.channels["force"], "accel": d.channels["accel"]}
+    cols[channel] = factor * cols[channel]
+    path = tmp_path / specs[i].path.name
+    write_csv_record(path, d.time, cols)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bad = process_record(replace(specs[i], path=path), SETTINGS)
+    assert bad.ok
+    return outcomes[:i] + [bad] + outcomes[i + 1:]
+
+
+def _index(outcomes, which):
+    q = [o.fit.q_max for o in outcomes]
+    return {"stuck": int(np.argmin(q)), "resonant": int(np.argmax(q)), "above": len(q) - 2}[which]
+
+
+@pytest.mark.parametrize("factor", [9.81, 1 / 9.81])
+@pytest.mark.parametrize("which", ["stuck", "resonant", "above"])
+def test_a_unit_error_in_the_jenkins_group_is_still_flagged(group, tmp_path, factor, which):
+    """Acceleration in g (1 / 9.81) or g counted twice (9.81) on a sticking record, the resonant one, or one above
+    resonance: that record alone is flagged, and the flag names a factor of at least 3 the same way (not the 9.81
+    itself: a sticking record is off the slipping ones' power law by the knee as well) or the record's dissipation
+    breaks the rule that it does not fall with amplitude."""
+    specs, outcomes = group
+    i = _index(outcomes, which)
+    flags = _flags(_rescaled(specs, outcomes, i, factor, tmp_path))
+    assert list(flags) == [i], flags
+    for f in flags[i]:
+        s = f.values.get("acceleration_scale")
+        if s is not None:  # the damping check (omega1's check may catch it first)
+            assert (s > 1) == (factor > 1) and max(s, 1 / s) >= 3.0, f.values
+
+
+@pytest.mark.parametrize("factor", [9.81, 1 / 9.81])
+@pytest.mark.parametrize("which", ["stuck", "resonant", "above"])
+def test_a_force_unit_error_in_the_jenkins_group_is_still_flagged(group, tmp_path, factor, which):
+    """A force in kgf (1 / 9.81) or scaled twice (9.81): c_eq moves by the factor at the same q_max."""
+    specs, outcomes = group
+    i = _index(outcomes, which)
+    flags = _flags(_rescaled(specs, outcomes, i, factor, tmp_path, channel="force"))
+    assert list(flags) == [i], flags
+
+
+def test_scale_factor_along_the_invariant_is_exact_on_a_power_law():
+    """On a power-law trend ``c = A q^p`` a member moved to ``(s q, c / s)`` is put back by the factor ``s``
+    whatever ``p``; it is flagged when it is also off the trend vertically by the factor (3 below, 8 above), as
+    before (the check never flags what it did not), and not for ``p = -1``, where ``c q`` is constant."""
+    q = {i: 1e-3 * 1.25**i for i in range(9)}
+    n_flagged = 0
+    for p in (-0.5, 0.0, 0.7, 2.0):
+        for s in (9.81, 1 / 9.81, 1000.0):
+            c = {i: 3.0 * (v / 1e-3) ** p for i, v in q.items()}
+            x = dict(q)
+            x[4], c[4] = s * q[4], c[4] / s
+            out = trend_outliers(x, c, factor=(3.0, 8.0), invariant=-1.0)
+            vertical = -(1 + p) * math.log(s)  # the log of c[4] over the trend at x[4]
+            if abs(vertical) <= math.log(3.0 if vertical < 0 else 8.0):
+                assert out == {}, (p, s, out)
+                continue
+            n_flagged += 1
+            assert list(out) == [4], (p, s, out)
+            assert out[4][2] == pytest.approx(s, rel=1e-9)
+            assert out[4][0] == pytest.approx(math.exp(vertical), rel=1e-9)
+    assert n_flagged == 11  # all but p = -0.5 with 1 / 9.81: 9.81^0.5 above the trend
+    # a Coulomb-like trend (c q constant): the moved member lies on it
+    c = {i: 3e-3 / v for i, v in q.items()}
+    x = dict(q)
+    x[4], c[4] = 9.81 * q[4], c[4] / 9.81
+    assert trend_outliers(x, c, factor=(3.0, 8.0), invariant=-1.0) == {}
+
+
+def test_a_knee_below_the_others_amplitudes_is_no_scale_error():
+    """Closed-form first-harmonic c_eq of a Jenkins joint plus viscous damping, ``c + 4 Fs (q - phi) / (pi w q^2)``
+    above slip: the records below slip lie far below the slipping ones' power law, but the factor along the
+    unit-error direction that would put them on it takes them further below all the others' amplitudes."""
+    w, phi, Fs, c0 = 200.0, 1e-3, 10.0, 5.0
+    qs = [0.8e-3, 0.9e-3] + list(np.geomspace(1.15e-3, 4e-3, 9))
+    q = dict(enumerate(qs))
+    c = {i: c0 + (4 * Fs * (v - phi) / (math.pi * w * v**2) if v > phi else 0.0) for i, v in q.items()}
+    vertical = set(trend_outliers(q, c, factor=(3.0, 8.0)))  # the comparison before
+    assert vertical and vertical <= {0, 1}
+    assert trend_outliers(q, c, factor=(3.0, 8.0), invariant=-1.0) == {}
