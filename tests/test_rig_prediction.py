@@ -9,14 +9,30 @@ no single-mode law follows), its macro-slip onset kept beyond the data when the 
 acceleration's fundamental) against the rig's exact FRF refined about its peak; the loops are the filtered loops of
 the demo's three 6 N dwells (resonant and three dwells either side).  Slow: reads the session's demo run
 (``demo_run``, tests/conftest.py).
+
+The structure route (what the issue's targets need): the campaign's ``[structure]`` beam (updated to the random
+test's natural frequencies) with its lowest four modes (below 1.5 x the random test's 700 Hz band), the random
+test's damping ratios, and one joint element on the joint rotation: a 4-parameter Iwan joint (300 sliders, the
+engineer's K_T = the updated joint stiffness, beta = 0) with a cubic spring beside it (``Parallel``), started from
+the single-mode fit carried onto the joint; ``F_S, K_T, chi, k3`` and mode 1's damping ratio fitted by
+``update_structure_joint`` to the first harmonics of both accelerometers at 1.5 and 3 N (harmonic balance H = 9).
+The 6 N peak: the fitted model's sweep over the 6 N dwells refined about its peak (H = 15); the loops: the model's
+force and sensor accelerations through the records' own transformation, ``Q - q'' - K0 q`` against the measured
+one of the same dwell over one period (``K0`` the single-mode fit's, for both routes).
 """
 
+import time
 import warnings
 
 import numpy as np
 import pytest
 
 from jointid.app.demo import _exact_frf
+from jointid.app.rig_structure import (beam_structure_model, joint_start_from_modal, predicted_modal_loop,
+                                       predicted_peak, predicted_sweep, record_first_harmonics)
+from jointid.app.update_joint import update_structure_joint
+from jointid.joints import Iwan4, PolynomialLaw
+from jointid.joints.parallel import Parallel
 from jointid.identify.heldout import HystereticFirstHarmonic, PolynomialFirstHarmonic
 from jointid.identify.hysteresis import hysteresis_loop
 from jointid.identify.hysteretic import HystereticForceStateMapping
@@ -29,6 +45,8 @@ SENSORS = ("accel_30", "accel_42")
 TOP = 6.0
 #: The issue's targets: peak frequency [%], peak amplitude [%], loops [relative rms].
 TARGET_F, TARGET_A, TARGET_LOOP = 0.02, 0.5, 0.03
+#: The structure route: modes kept, harmonics of the fit and of the prediction, sliders of the Iwan joint.
+N_MODES, H_FIT, H_PREDICT, N_SLIDERS = 4, 9, 15, 300
 
 
 def _loop_dwells(sigs, lev):
@@ -49,9 +67,40 @@ def _errors(pr, fh, Q, exact):
     return out
 
 
+def _structure_route(pr, sigs, lev, fit, exact):
+    """Fit the joint in the campaign's beam to the 1.5 and 3 N records; the 6 N peak errors and loops."""
+    s = pr.structure
+    kt = float(pr.update.beam.joint.k_t)  # the [structure] table's joint.k_t: the updated joint, stuck
+    law0 = Parallel((Iwan4(F_S=1.0, K_T=kt, chi=-0.5, beta=0.0, n_sliders=N_SLIDERS), PolynomialLaw({"-q^3": 0.0})))
+    zeta = pr.modal_fit.damping_ratios
+    psi = beam_structure_model(s, law0, zeta, n_modes=N_MODES).modal.shape("joint_rotation")[0]
+    start = joint_start_from_modal(fit.law, max(fit.get("k3"), 0.0), psi, kt)
+    model = beam_structure_model(s, law0.replace(**start), zeta, n_modes=N_MODES)
+    usable = [o for o in pr.result.records if o.usable and o.spec.preload == pr.preload]
+    meas = record_first_harmonics(usable, SENSORS, [x for x in sorted(set(lev)) if x < TOP])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        upd = update_structure_joint(model, meas, parameters=["F_S", "K_T", "chi", "k3", "zeta_1"],
+                                     n_harmonics=H_FIT, heldout=False, source=f"campaign {pr.preload:g} N [structure]")
+    print(upd.report())
+    fitted = upd.fitted["structure"]
+    top = sorted((i for i, x in enumerate(lev) if x == TOP), key=lambda i: sigs[i].frequency_hz)
+    freqs = [sigs[i].frequency_hz for i in top]
+    sweep = predicted_sweep(fitted, freqs, TOP, n_harmonics=H_PREDICT)
+    errs = {}
+    for sen in SENSORS:
+        f_ex, h_ex = exact[sen].peak()
+        fp, hp = predicted_peak(fitted, freqs, TOP, sen, n_harmonics=H_PREDICT, sweep=sweep)
+        errs[sen] = (100 * (fp / f_ex - 1), 100 * (hp / h_ex - 1))
+    loops = [predicted_modal_loop(fitted, sweep[top.index(i)], s, sigs[i], fit.stiffness0)["rms_difference"]
+             for i in _loop_dwells(sigs, lev)]
+    return upd, errs, loops
+
+
 @pytest.mark.slow
 def test_hysteretic_law_from_two_levels_predicts_the_top_level(demo_run):
-    misses, rows = [], []
+    t_start = time.perf_counter()
+    misses, rows, open_single = [], [], []
     cubic = next(c for c in default_candidates() if c.name == "cubic")
     for pr in demo_run.preloads:
         sigs, lev = usable_records(pr)
@@ -77,23 +126,37 @@ def test_hysteretic_law_from_two_levels_predicts_the_top_level(demo_run):
         loops = [fit.loop(sigs[i]).rms_difference for i in _loop_dwells(sigs, lev)]
         loops_cubic = [hysteresis_loop(sigs[i], lib, expand(m.law_orders, sigs[i].q_max(), m.parameters)[0]).rms_difference
                        for i in _loop_dwells(sigs, lev)]
+        upd, struct, loops_struct = _structure_route(pr, sigs, lev, fit, exact)
+        truth = pr.rig.joint_laws["rotation"]
+        # known parameters of the virtual rig recovered through the structure (not used to build the model)
+        assert upd.estimate["k3"] == pytest.approx(truth.k3, rel=0.05)
+        assert upd.estimate["chi"] == pytest.approx(truth.iwan.chi, abs=0.02)
+        assert upd.estimate["zeta_1"] == pytest.approx(pr.rig.damping_ratio, rel=0.01)
         for sen in SENSORS:
-            (fh, ah), (fc, ac) = hyst[sen], cub[sen]
-            rows.append(f"{pr.preload:g} N {sen}: Iwan + cubic peak f {fh:+.4f} %, A {ah:+.3f} %   |   "
-                        f"cubic f {fc:+.4f} %, A {ac:+.3f} %")
-            # reached: the peak frequency, and a better amplitude than the cubic's
+            (fh, ah), (fc, ac), (fs, as_) = hyst[sen], cub[sen], struct[sen]
+            rows.append(f"{pr.preload:g} N {sen}: structure Iwan + cubic peak f {fs:+.4f} %, A {as_:+.3f} %   |   "
+                        f"single-mode Iwan + cubic f {fh:+.4f} %, A {ah:+.3f} %   |   cubic f {fc:+.4f} %, A {ac:+.3f} %")
+            # the single-mode law: the peak frequency, and a better amplitude than the cubic's
             assert abs(fh) < TARGET_F and abs(fh) < abs(fc)
             assert abs(ah) < abs(ac)
             if abs(ah) >= TARGET_A:
-                misses.append(f"{pr.preload:g} N {sen} peak amplitude {ah:+.2f} %")
-        rows.append(f"{pr.preload:g} N loops at 6 N: Iwan + cubic {np.round(100 * np.array(loops), 1)} %   |   "
+                open_single.append(f"{pr.preload:g} N {sen} peak amplitude {ah:+.2f} %")
+            if abs(fs) >= TARGET_F:
+                misses.append(f"{pr.preload:g} N {sen} structure peak frequency {fs:+.4f} %")
+            if abs(as_) >= TARGET_A:
+                misses.append(f"{pr.preload:g} N {sen} structure peak amplitude {as_:+.2f} %")
+        rows.append(f"{pr.preload:g} N loops at 6 N: structure {np.round(100 * np.array(loops_struct), 1)} %   |   "
+                    f"single-mode Iwan + cubic {np.round(100 * np.array(loops), 1)} %   |   "
                     f"cubic {np.round(100 * np.array(loops_cubic), 1)} %")
-        assert max(loops) < max(loops_cubic)
+        assert max(loops) < max(loops_cubic) and max(loops_struct) < max(loops)
         if max(loops) >= TARGET_LOOP:
-            misses.append(f"{pr.preload:g} N loops {100 * max(loops):.1f} % rms")
+            open_single.append(f"{pr.preload:g} N loops {100 * max(loops):.1f} % rms")
+        if max(loops_struct) >= TARGET_LOOP:
+            misses.append(f"{pr.preload:g} N structure loops {100 * max(loops_struct):.1f} % rms")
     print("\n".join(rows))
+    # the single-mode law alone stays short of the targets: the other modes' share at the sensors moves the
+    # 6 N peak amplitude, and the measured loops carry mode 2 in their harmonics, which no single-mode law follows
+    print("single-mode law short of the targets: " + ("; ".join(open_single) or "none"))
+    print(f"test time {time.perf_counter() - t_start:.0f} s (the session's demo run not counted)")
     if misses:
-        # Open (issue 22): a single-mode model of the rig, even fitted on all three levels, misses the 6 N peak
-        # amplitude at 120 N by +0.3 / +0.6 % (accel_42 / accel_30: the other modes' share at the sensors), and
-        # the measured loops carry mode 2 in their 5th harmonic, which no single-mode law follows.
-        pytest.xfail("targets not reached: " + "; ".join(misses))
+        pytest.xfail("targets not reached through the structure: " + "; ".join(misses))

@@ -41,8 +41,8 @@ from ..simulate.structure import JointElement, ModalModel, StructureModel
 from ..simulate.structure_hb import to_complex
 from .update_joint import MeasuredFRF
 
-__all__ = ["JOINT_DOFS", "beam_structure_model", "record_first_harmonics", "predicted_modal_loop",
-           "predicted_peak", "sensor_acceleration"]
+__all__ = ["JOINT_DOFS", "beam_structure_model", "joint_start_from_modal", "record_first_harmonics", "predicted_modal_loop",
+           "predicted_peak", "predicted_sweep", "sensor_acceleration"]
 
 #: DOF names of the joint's relative motions in :func:`beam_structure_model`.
 JOINT_DOFS = {"rotation": "joint_rotation", "transverse": "joint_deflection"}
@@ -91,6 +91,25 @@ def beam_structure_model(structure, law, zeta, *, direction="rotation", n_modes=
     return StructureModel(modal, [joint], {structure.force_column: 1.0})
 
 
+def joint_start_from_modal(modal_law, modal_k3, psi, K_T, beta=0.0) -> dict:
+    """Start values ``{F_S, K_T, chi, beta, k3}`` on the joint of an Iwan4 + cubic law identified in a modal coordinate.
+
+    With the joint's motion ``u = psi q`` the modal force ``psi f(psi q)`` of an Iwan joint is
+    an Iwan law in ``q`` with the same ``chi`` and the density coefficient
+    ``R_q = psi^(chi + 3) R_u``, and a cubic ``k3_q = psi^4 k3_u``.  The micro-slip force
+    (all the records can show below macro-slip) depends on ``R`` and ``chi`` only, so with
+    the engineer's ``K_T`` and ``beta`` the joint's ``F_S`` is the one giving ``R_u``:
+    ``F_S = ((chi + 1) (K_T d / (1 + beta))^(chi + 2) / (d R_u))^(1 / (chi + 1))``,
+    ``d = beta + (chi + 1) / (chi + 2)``.
+    """
+    p = abs(float(psi))
+    chi = float(modal_law.chi)
+    R = float(modal_law.R) / p ** (chi + 3.0)
+    d = beta + (chi + 1.0) / (chi + 2.0)
+    F_S = ((chi + 1.0) * (K_T * d / (1.0 + beta)) ** (chi + 2.0) / (d * R)) ** (1.0 / (chi + 1.0))
+    return {"F_S": F_S, "K_T": float(K_T), "chi": chi, "beta": float(beta), "k3": float(modal_k3) / p**4}
+
+
 def record_first_harmonics(outcomes, sensors, force_levels, *, force_column="force") -> MeasuredFRF:
     """First harmonics of the sensor displacements of stepped-sine records, per unit of the model's force.
 
@@ -133,38 +152,55 @@ def sensor_acceleration(model: StructureModel, point, dof) -> complex:
     return -(point.omega**2) * to_complex(model.modal.shape(dof) @ point.modal[:, :3])[1]
 
 
+def predicted_sweep(model: StructureModel, frequencies_hz, force_amplitude, *, n_harmonics=9, n_time=None,
+                    start=None) -> list:
+    """Steady states of a stepped sweep, in the given order, each started from its predecessors (secant);
+    the first from ``start`` (joint coefficients), else from the linear response."""
+    out, prev = [], []
+    for f in np.asarray(frequencies_hz, float):
+        guess = start
+        if len(prev) >= 2:
+            (f0, u0), (f1, u1) = prev[-2], prev[-1]
+            guess = u1 + (f - f1) / (f1 - f0) * (u1 - u0) if f1 != f0 else u1
+        elif prev:
+            guess = prev[-1][1]
+        p = model.solve(f, force_amplitude, n_harmonics, n_time=n_time, guess=guess)
+        prev.append((f, p.joint))
+        out.append(p)
+    return out
+
+
 def predicted_peak(model: StructureModel, frequencies_hz, force_amplitude, dof, *, n_harmonics=9, n_time=None,
-                   rtol=1e-5) -> tuple:
+                   rtol=1e-5, sweep=None) -> tuple:
     """``(frequency [Hz], |acceleration fundamental| / F)`` of the model's FRF peak at ``dof``.
 
-    The frequencies (a stepped sweep, in order) are solved each from its predecessors; the
-    intervals beside the largest are halved down to ``rtol`` of its frequency
-    (:func:`~jointid.numerics.peaks.refine_peak`, every new point started from the nearest
+    The frequencies (a stepped sweep, in order; or the steady states ``sweep`` of
+    :func:`predicted_sweep` at them) are solved each from its predecessors; the intervals
+    beside the largest are halved down to ``rtol`` of its frequency
+    (:func:`~jointid.numerics.peaks.refine_peak`, each new point started from the nearest
     solved one) and :func:`~jointid.numerics.peaks.parabolic_peak` locates the peak.
     """
-    solved = {}
+    f = np.asarray(frequencies_hz, float)
+    pts = list(sweep) if sweep is not None else predicted_sweep(model, f, force_amplitude, n_harmonics=n_harmonics,
+                                                                  n_time=n_time)
+    solved = dict(zip(f.tolist(), pts))
 
-    def run(fs):
-        out, prev = [], []
-        for f in fs:
-            guess = None
-            if len(prev) >= 2:
-                (f0, u0), (f1, u1) = prev[-2], prev[-1]
-                guess = u1 + (f - f1) / (f1 - f0) * (u1 - u0) if f1 != f0 else u1
-            elif prev:
-                guess = prev[-1][1]
-            elif solved:
-                guess = solved[min(solved, key=lambda g: abs(g - f))].joint
-            p = model.solve(f, force_amplitude, n_harmonics, n_time=n_time, guess=guess)
-            solved[float(f)] = p
-            prev.append((f, p.joint))
-            out.append(abs(sensor_acceleration(model, p, dof)) / force_amplitude)
+    def amp(p):
+        return abs(sensor_acceleration(model, p, dof)) / force_amplitude
+
+    def more(fn):
+        out = []
+        for x in np.asarray(fn, float):
+            near = solved[min(solved, key=lambda g: abs(g - x))]
+            p = predicted_sweep(model, [x], force_amplitude, n_harmonics=near.n_harmonics, n_time=n_time,
+                                start=near.joint)[0]
+            solved[float(x)] = p
+            out.append(amp(p))
         return out
 
-    f = np.asarray(frequencies_hz, float)
-    y = run(f)
+    y = np.array([amp(p) for p in pts])
     k = int(np.argmax(y))
-    xs, ys = refine_peak(lambda fn: run(np.asarray(fn, float)), f, np.asarray(y), rtol * f[k])
+    xs, ys = refine_peak(more, f, y, rtol * f[k])
     return parabolic_peak(xs, ys)
 
 

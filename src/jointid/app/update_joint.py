@@ -5,6 +5,10 @@ element whose law parameters are the starting values.  The measurements are firs
 FRF points: per force level, the first harmonic of the displacement at a named DOF at each
 dwell frequency (``MEASURED.csv``, docs/formats.md "Measured first harmonics for updating").
 
+Besides the law's parameters, ``zeta_<r>`` fits the modal damping ratio of mode ``r`` (1-based)
+of the linear model: a damping ratio estimated at a low level (a random test) holds the joint's
+own micro-slip dissipation there, which the law then counts a second time.
+
 The fitted parameters ``theta`` (log of each positive parameter, the others as they are)
 minimise by :func:`scipy.optimize.least_squares`
 
@@ -48,7 +52,7 @@ from ..errors import (
 )
 from ..io.structure_model import read_structure_model
 from ..rounding import format_ci, format_pm
-from ..simulate.structure import JointElement, StructureModel, structure_from_spec
+from ..simulate.structure import JointElement, ModalModel, StructureModel, structure_from_spec
 from ..simulate.structure_hb import to_complex
 from .structure_predict import located_peak
 from ..numerics.intervals import Z95
@@ -119,11 +123,24 @@ def read_measured_frf(path) -> MeasuredFRF:
                        a1 - 1j * b1, np.array(vals["se"]))
 
 
-def _with_law(model: StructureModel, j: int, law) -> StructureModel:
+def _with_law(model: StructureModel, j: int, law, zeta=None) -> StructureModel:
+    """``model`` with joint ``j``'s law replaced and, given ``{mode index: ratio}``, modal damping ratios."""
     joints = list(model.joints)
     old = joints[j]
     joints[j] = JointElement(old.name, old.dof_a, old.dof_b, law, old.k_model)
-    return StructureModel(model.modal, joints, model.force)
+    modal = model.modal
+    if zeta:
+        z = modal.zeta.copy()
+        for r, v in zeta.items():
+            z[r] = v
+        modal = ModalModel(modal.omega, z, modal.dof_names, modal.shapes)
+    return StructureModel(modal, joints, model.force)
+
+
+def _zeta_mode(name):
+    """``"zeta_2"`` -> 1 (the mode's index), other names -> None."""
+    head, _, num = name.partition("_")
+    return int(num) - 1 if head == "zeta" and num.isdigit() and int(num) >= 1 else None
 
 
 class _Fitter:
@@ -131,17 +148,26 @@ class _Fitter:
         self.model, self.j, self.names = model, joint, list(names)
         self.H, self.N = int(n_harmonics), n_time
         law = model.joints[joint].law
-        p0 = law.parameters
+        p0 = {**law.parameters, **{k: float(model.modal.zeta[_zeta_mode(k)]) for k in self.names
+                                   if _zeta_mode(k) is not None}}
         self.log = [p0[k] > 0 for k in self.names]
         self.theta0 = np.array([math.log(p0[k]) if lg else p0[k] for k, lg in zip(self.names, self.log)])
 
+    def _values(self, theta):
+        return {k: (math.exp(t) if lg else float(t)) for k, t, lg in zip(self.names, theta, self.log)}
+
     def law(self, theta):
-        vals = {k: (math.exp(t) if lg else float(t)) for k, t, lg in zip(self.names, theta, self.log)}
+        vals = {k: v for k, v in self._values(theta).items() if _zeta_mode(k) is None}
         return self.model.joints[self.j].law.replace(**vals)
+
+    def structure(self, theta) -> StructureModel:
+        """The structure model at ``theta`` (the joint's law and any fitted modal damping ratios)."""
+        zeta = {_zeta_mode(k): v for k, v in self._values(theta).items() if _zeta_mode(k) is not None}
+        return _with_law(self.model, self.j, self.law(theta), zeta)
 
     def responses(self, theta, meas: MeasuredFRF):
         """Model first harmonics at the measured points (each level in file order, continued)."""
-        m = _with_law(self.model, self.j, self.law(theta))
+        m = self.structure(theta)
         out = np.empty(meas.X.size, complex)
         for lv in meas.levels():
             idx = np.flatnonzero(meas.force_level == lv)
@@ -198,7 +224,7 @@ class JointUpdate:
     nfev: int
     heldout: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
-    fitted: dict = field(default_factory=dict)  # measured vs model first harmonics (for the figure)
+    fitted: dict = field(default_factory=dict)  # measured vs model first harmonics (for the figure), fitted model
 
     @property
     def chi2_per_dof(self) -> float:
@@ -284,7 +310,7 @@ def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time):
                predicted_peak_frequency_hz=pp[0], predicted_peak_amplitude=pp[1],
                peak_frequency_error_pct=100 * (pp[0] / mp[0] - 1), peak_amplitude_error_pct=100 * (pp[1] / mp[1] - 1))
     # the model's own peak between continued points (not limited by the dwell spacing)
-    m = _with_law(fitter.model, fitter.j, fitter.law(sol.x))
+    m = fitter.structure(sol.x)
     try:
         curve = m.frequency_response(float(out.frequency_hz.min()), float(out.frequency_hz.max()), level,
                                      n_harmonics, n_time=n_time)
@@ -327,9 +353,9 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=No
         if d not in model.modal.dof_names:
             raise ManifestError(f"{meas.path}: dof {d!r} is not a DOF of the structure model {source}")
     law = model.joints[j].law
-    units = law.units if units is None else units
-    avail = list(law.parameters)
-    names = avail if parameters is None else list(parameters)
+    units = {**(law.units if units is None else units), **{f"zeta_{r + 1}": "1" for r in range(model.modal.n_modes)}}
+    avail = list(law.parameters) + [f"zeta_{r + 1}" for r in range(model.modal.n_modes)]
+    names = list(law.parameters) if parameters is None else list(parameters)
     bad = [k for k in names if k not in avail]
     if bad or not names:
         raise ManifestError(f"{source}: joint {names_j[j]!r} ({law.name}) has no parameter(s) "
@@ -376,9 +402,9 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=No
     if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
     res = JointUpdate(str(source), meas.path, names_j[j], law.name, names, {k: units.get(k, "") for k in names},
-                      {k: law.parameters[k] for k in names}, est, se, ci, dict(zip(names, fitter.log)),
+                      fitter._values(fitter.theta0), est, se, ci, dict(zip(names, fitter.log)),
                       chi2, dof, bool(scaled), corr, int(meas.X.size), int(n_harmonics), int(sol.nfev), warnings=warn)
-    res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas)}
+    res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas), "structure": fitter.structure(sol.x)}
     if heldout and len(meas.levels()) >= 2:
         for lv in meas.levels():
             res.heldout.append(_heldout(fitter, meas, lv, sol.x, n_harmonics, n_time))
