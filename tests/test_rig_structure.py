@@ -3,13 +3,16 @@
 import numpy as np
 import pytest
 
-from jointid.app.rig_structure import beam_structure_model, sensor_acceleration
-from jointid.errors import StructureError
+from jointid.app.rig_structure import beam_structure_model, joint_start_from_modal, sensor_acceleration
+from jointid.app.update_joint import MeasuredFRF, update_structure_joint
+from jointid.errors import ManifestError, StructureError
 from jointid.joints import Iwan4, Jenkins, PolynomialLaw
 from jointid.joints.parallel import Parallel
 from jointid.modal.structure import Structure
 from jointid.rig.plan import structure_section
 from jointid.rig.rig import seed_rig
+from jointid.simulate.structure import JointElement, ModalModel, StructureModel
+from jointid.simulate.structure_hb import to_complex
 
 
 def _rig_law(rig):
@@ -73,3 +76,43 @@ def test_parallel_law_is_the_sum_of_its_parts():
         Parallel((Jenkins(kt=1.0, Fs=1.0), Jenkins(kt=2.0, Fs=1.0)))
     with pytest.raises(StructureError, match="two or more"):
         Parallel((iw,))
+
+
+def test_start_values_carry_a_modal_iwan_law_onto_the_joint():
+    """An Iwan + cubic law on the joint seen in a modal coordinate (u = psi q) is an Iwan law in q with R_q =
+    psi^(chi+3) R_u: the start values rebuild the joint's micro-slip (R, chi) and cubic with the engineer's K_T."""
+    psi = -0.37
+    joint = Iwan4(F_S=16.0, K_T=2000.0, chi=-0.3, beta=0.4)
+    modal = Iwan4(F_S=abs(psi) * joint.F_S, K_T=psi**2 * joint.K_T, chi=joint.chi, beta=joint.beta)
+    st = joint_start_from_modal(modal, psi**4 * 1.5e7, psi, K_T=2500.0)
+    back = Iwan4(F_S=st["F_S"], K_T=st["K_T"], chi=st["chi"], beta=st["beta"])
+    assert back.R == pytest.approx(joint.R, rel=1e-12) and back.chi == joint.chi and st["k3"] == pytest.approx(1.5e7)
+    # the same micro-slip force below both phi_max: the nonlinear parts K_T u - f(u) agree
+    a = np.array([1e-4, 1e-3])
+    np.testing.assert_allclose(back.K_T * a - back.backbone(a), joint.K_T * a - joint.backbone(a), rtol=1e-10)
+
+
+def test_update_structure_joint_recovers_a_modal_damping_ratio_with_the_law():
+    """zeta_1 fitted beside the joint's slip force: first harmonics made by the model itself (0.2 % noise) with
+    zeta_1 = 0.002 and Fs = 0.5 are recovered from zeta_1 = 0.0015, Fs = 0.8 within their 95 % intervals."""
+    modal = ModalModel.from_hz([10.0, 40.0], [0.0015, 0.002], ["x1", "x2"], [[0.8, 0.5], [1.0, -0.6]])
+    true = StructureModel(ModalModel.from_hz([10.0, 40.0], [0.002, 0.002], ["x1", "x2"], [[0.8, 0.5], [1.0, -0.6]]),
+                          [JointElement("j", None, "x1", Jenkins(kt=300.0, Fs=0.5), 300.0)], {"x2": 1.0})
+    rng = np.random.default_rng(3)
+    lv, fr, X = [], [], []
+    for F in (0.2, 0.4):
+        for f in np.linspace(9.6, 10.4, 7):
+            p = true.solve(f, F, 3)
+            lv.append(F), fr.append(f), X.append(to_complex(true.modal.shape("x2") @ p.modal)[1])
+    X = np.array(X)
+    se = 0.002 * np.abs(X)
+    Xn = X + se * (rng.standard_normal(X.size) + 1j * rng.standard_normal(X.size))
+    meas = MeasuredFRF("<simulated>", np.array(lv), np.array(fr), ("x2",) * X.size, Xn, se)
+    start = StructureModel(modal, [JointElement("j", None, "x1", Jenkins(kt=300.0, Fs=0.8), 300.0)], {"x2": 1.0})
+    res = update_structure_joint(start, meas, parameters=["Fs", "zeta_1"], n_harmonics=3, heldout=False)
+    for k, v in (("Fs", 0.5), ("zeta_1", 0.002)):
+        lo, hi = res.ci95[k]
+        assert lo < v < hi and abs(res.estimate[k] / v - 1) < 0.05
+    assert res.fitted["structure"].modal.zeta[0] == pytest.approx(res.estimate["zeta_1"])
+    with pytest.raises(ManifestError, match="no parameter"):
+        update_structure_joint(start, meas, parameters=["zeta_3"], heldout=False)
