@@ -26,20 +26,26 @@ import warnings
 
 import numpy as np
 import pytest
+from test_selection_rig import sensor_scale, usable_records
 
 from jointid.app.demo import _exact_frf
-from jointid.app.rig_structure import (beam_structure_model, joint_start_from_modal, predicted_modal_loop,
-                                       predicted_peak, predicted_sweep, record_first_harmonics)
+from jointid.app.rig_structure import (
+    beam_structure_model,
+    joint_start_from_modal,
+    predicted_modal_loop,
+    predicted_peak,
+    predicted_sweep,
+    record_first_harmonics,
+)
 from jointid.app.update_joint import update_structure_joint
-from jointid.joints import Iwan4, PolynomialLaw
-from jointid.joints.parallel import Parallel
 from jointid.identify.heldout import HystereticFirstHarmonic, PolynomialFirstHarmonic
 from jointid.identify.hysteresis import hysteresis_loop
 from jointid.identify.hysteretic import HystereticForceStateMapping
 from jointid.identify.model import PreloadForceStateMapping, expand
 from jointid.identify.selection import default_candidates
 from jointid.identify.terms import library
-from test_selection_rig import sensor_scale, usable_records
+from jointid.joints import Iwan4, PolynomialLaw
+from jointid.joints.parallel import Parallel
 
 SENSORS = ("accel_30", "accel_42")
 TOP = 6.0

@@ -3,7 +3,11 @@
 import numpy as np
 import pytest
 
-from jointid.app.rig_structure import beam_structure_model, joint_start_from_modal, sensor_acceleration
+from jointid.app.rig_structure import (
+    beam_structure_model,
+    joint_start_from_modal,
+    sensor_acceleration,
+)
 from jointid.app.update_joint import MeasuredFRF, update_structure_joint
 from jointid.errors import ManifestError, StructureError
 from jointid.joints import Iwan4, Jenkins, PolynomialLaw
@@ -64,7 +68,7 @@ def test_parallel_law_is_the_sum_of_its_parts():
     # time stepping: states one after the other
     s = law.initial_state()
     assert s.shape == (iw.n_state,)
-    fa, s1 = law.force(1e-3, 0.1, s)
+    fa, _ = law.force(1e-3, 0.1, s)
     fb, _ = iw.force(1e-3, 0.1, iw.initial_state())
     assert fa == pytest.approx(float(fb) - 3e5 * 1e-9 + 0.07, rel=1e-12)
     # replace by name, routed to the part that has it

@@ -41,8 +41,16 @@ from ..simulate.structure import JointElement, ModalModel, StructureModel
 from ..simulate.structure_hb import to_complex
 from .update_joint import MeasuredFRF
 
-__all__ = ["JOINT_DOFS", "beam_structure_model", "joint_start_from_modal", "record_first_harmonics", "predicted_modal_loop",
-           "predicted_peak", "predicted_sweep", "sensor_acceleration"]
+__all__ = [
+    "JOINT_DOFS",
+    "beam_structure_model",
+    "joint_start_from_modal",
+    "predicted_modal_loop",
+    "predicted_peak",
+    "predicted_sweep",
+    "record_first_harmonics",
+    "sensor_acceleration",
+]
 
 #: DOF names of the joint's relative motions in :func:`beam_structure_model`.
 JOINT_DOFS = {"rotation": "joint_rotation", "transverse": "joint_deflection"}

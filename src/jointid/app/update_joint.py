@@ -51,11 +51,16 @@ from ..errors import (
     StructureError,
 )
 from ..io.structure_model import read_structure_model
+from ..numerics.intervals import Z95
 from ..rounding import format_ci, format_pm
-from ..simulate.structure import JointElement, ModalModel, StructureModel, structure_from_spec
+from ..simulate.structure import (
+    JointElement,
+    ModalModel,
+    StructureModel,
+    structure_from_spec,
+)
 from ..simulate.structure_hb import to_complex
 from .structure_predict import located_peak
-from ..numerics.intervals import Z95
 
 __all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
 

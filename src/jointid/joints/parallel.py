@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import StructureError
 from ..conventions import TERMS
+from ..errors import StructureError
 from ._core import JointLaw, _scalar_out
 from .polynomial import PolynomialLaw
 
