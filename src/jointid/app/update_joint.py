@@ -155,6 +155,7 @@ class _Fitter:
         law = model.joints[joint].law
         p0 = {**law.parameters, **{k: float(model.modal.zeta[_zeta_mode(k)]) for k in self.names
                                    if _zeta_mode(k) is not None}}
+        self.start = {k: p0[k] for k in self.names}
         self.log = [p0[k] > 0 for k in self.names]
         self.theta0 = np.array([math.log(p0[k]) if lg else p0[k] for k, lg in zip(self.names, self.log)])
 
@@ -407,7 +408,7 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=No
     if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
     res = JointUpdate(str(source), meas.path, names_j[j], law.name, names, {k: units.get(k, "") for k in names},
-                      fitter._values(fitter.theta0), est, se, ci, dict(zip(names, fitter.log)),
+                      fitter.start, est, se, ci, dict(zip(names, fitter.log)),
                       chi2, dof, bool(scaled), corr, int(meas.X.size), int(n_harmonics), int(sol.nfev), warnings=warn)
     res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas), "structure": fitter.structure(sol.x)}
     if heldout and len(meas.levels()) >= 2:
