@@ -18,6 +18,7 @@ from ...errors import ConvergenceError, RecordError
 from ...numerics.aft import resize_harmonics
 from ...identify.terms import STANDARD_TERMS
 from ..model import SingleModeModel
+from ..newton import damped_newton
 from .batch import _BatchMixin
 from .kernels import _TINY, _basis, _basis_at, _horner, _peak, _readonly, _solve, default_n_time
 from .results import SteadyState, linear_frf
@@ -275,39 +276,27 @@ class _Problem(_BatchMixin, _StabilityMixin):
     # -- Newton at fixed frequency ---------------------------------------------------
 
     def newton(self, z0, omega, tol=1e-12, max_iter=40):
-        """Damped Newton; returns ``(z, evaluation, iterations)`` or raises.
+        """Damped Newton (:func:`jointid.simulate.newton.damped_newton`); returns ``(z, evaluation,
+        iterations)`` or raises :class:`ConvergenceError`.
 
-        Trial points are evaluated without Jacobian; it is built only for points that
-        are accepted and not yet converged.
+        Trial points are evaluated without Jacobian; it is built only for points that are
+        accepted and not yet converged.  A trial is accepted when the scaled error decreases;
+        after eleven halvings without decrease the iteration fails (callers then try the next
+        start).
         """
-        z = np.array(z0, float)
-        ev = self.evaluate(z, omega, jacobian=False)
-        it = 0
-        while ev["err"] > tol:
-            if it >= max_iter:
-                raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "iteration limit reached"))
-            it += 1
-            if ev["J"] is None:
-                self.jacobian(ev)
-            try:
-                step = _solve(ev["J"], -ev["R"])
-            except np.linalg.LinAlgError:
-                raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "singular Jacobian")) from None
-            if not np.all(np.isfinite(step)):
-                raise ConvergenceError(self._fail_msg(omega, ev["err"], it, tol, "non-finite Newton step"))
-            lam = 1.0
-            for _ in range(12):
-                trial = z + lam * step
-                ev_t = self.evaluate(trial, omega, jacobian=False)
-                if ev_t["err"] < ev["err"] or ev_t["err"] <= tol:
-                    break
-                lam *= 0.5
-            else:
-                raise ConvergenceError(
-                    self._fail_msg(omega, ev["err"], it, tol, "no decrease of the residual along the Newton step")
-                )
-            z, ev = trial, ev_t
-        return z, ev, it
+
+        def residual(z):
+            ev = self.evaluate(z, omega, jacobian=False)
+            return ev["R"], None, ev["err"], ev
+
+        out = damped_newton(np.array(z0, float), residual, tol, max_iter, jacobian=self._jacobian_of,
+                            merit="error", on_stall="fail", halvings=11, solve=_solve)
+        if not out.converged:
+            raise ConvergenceError(self._fail_msg(omega, out.error, out.iterations, tol, out.reason))
+        return out.x, out.state, out.iterations
+
+    def _jacobian_of(self, ev):
+        return self.jacobian(ev)["J"]
 
     def _fail_msg(self, omega, err, it, tol, why):
         self._last_failure = f"{why} after {it} iterations, scaled residual {err:.3g} > tol {tol:.1g}"
