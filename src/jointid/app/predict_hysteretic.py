@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, JointidError, JointidWarning, RecordError
 from ..joints import ExactReversals, Iwan4, Jenkins
+from ..numerics.aft import aft_samples
 
 __all__ = ["ExactReversals", "HystereticModel", "hysteretic_model_of", "hysteretic_models", "hysteretic_response"]
 
@@ -57,7 +58,7 @@ def _time_samples(n_harmonics, fine=False) -> int:
     at ``16 (H + 1)`` samples and the points about its peak are solved again at ``64 (H + 1)``
     (powers of two).
     """
-    return int(2 ** math.ceil(math.log2((64 if fine else 16) * (int(n_harmonics) + 1))))
+    return aft_samples(n_harmonics, 64 if fine else 16)
 
 
 @dataclass(frozen=True)
