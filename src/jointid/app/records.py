@@ -21,8 +21,8 @@ from ..errors import IdentificationError, JointidError, JointidWarning, where
 from ..identify.fsm import ForceStateMapping, RecordFit
 from ..identify.terms import library
 from ..io.campaign import RecordSpec, read_record
-from ..signal.checks import (Flag, check_live, clipping_flag, equivalent_damping, monotone_outliers, record_flags,
-                             scale_outliers, trend_outliers)
+from ..signal.checks import (Z_LIMIT, Flag, check_live, clipping_flag, equivalent_damping, monotone_outliers,
+                             record_flags, scale_outliers, trend_outliers)
 from ..signal.harmonics import StateSignals, steady_state_signals
 
 __all__ = ["IdentifySettings", "RecordOutcome", "process_record", "process_all", "flag_group_outliers", "Flag"]
@@ -311,7 +311,8 @@ def _damping_outliers(outcomes, members) -> dict:
     the trend at the group's smaller amplitudes (``q_max`` at most the group's median) when
 
     - no factor of 3 or more on its acceleration puts it on the trend (such a factor multiplies
-      ``q_max`` by itself and ``c_eq`` by its inverse: ``invariant=-1``), and
+      ``q_max`` by itself and ``c_eq`` by its inverse: ``invariant=-1``) while keeping its ``omega1``
+      among the group's (:func:`_stiffness_agrees`), and
     - its energy dissipated per cycle over its amplitude, ``W / (pi q_max) = c_eq omega q_max``, is
       not 3 times below that of a record with a smaller amplitude (:func:`monotone_outliers`: for
       viscous, polynomial and friction damping it does not fall as the amplitude grows).
@@ -340,10 +341,34 @@ def _damping_outliers(outcomes, members) -> dict:
     small = float(np.median([v for v in q.values() if v is not None and np.isfinite(v)]))
     out = {}
     for i, (ratio, trend, _) in vertical.items():
-        if ratio < 1 and q[i] <= small and i not in scaled and i not in dissipation:
+        unit = i in scaled and _stiffness_agrees(outcomes, members, i, scaled[i][2])
+        if ratio < 1 and q[i] <= small and not unit and i not in dissipation:
             continue  # a joint that sticks at the smaller amplitudes
         out[i] = (c[i], se[i], ratio, trend, scaled[i][2] if i in scaled else None, dissipation.get(i))
     return out
+
+
+def _stiffness_agrees(outcomes, members, i, scale) -> bool:
+    """Whether record ``i`` with its acceleration divided by ``scale`` keeps an ``omega1`` within its group's.
+
+    A factor ``s`` on the acceleration multiplies ``omega1^2 - omega^2`` by ``1 / s`` (the fit keeps
+    the unit modal mass): undone, the record's ``omega1`` is ``sqrt(omega^2 + s (omega1^2 - omega^2))``.
+    A unit error undone brings it among the others' (or leaves it where it was, at resonance); a
+    record that was right moves off them (a sticking joint's dwell well below resonance, by its
+    stiffness and damping ratio together).  Agreement: not farther from the others' median ``omega1``
+    (in log) than the record itself by more than ``Z_LIMIT`` robust standard deviations of theirs.
+    """
+    o = outcomes[i]
+    others = np.log([outcomes[j].fit.omega1 for j in members if j != i and outcomes[j].fit.omega1 > 0])
+    if others.size < 2 or not o.fit.omega1 > 0:
+        return True
+    w2 = o.signals.omega ** 2
+    k = w2 + scale * (o.fit.omega1 ** 2 - w2)
+    if not k > 0:
+        return False
+    med = float(np.median(others))
+    spread = 1.4826 * float(np.median(np.abs(others - med)))
+    return abs(0.5 * np.log(k) - med) <= abs(np.log(o.fit.omega1) - med) + Z_LIMIT * spread
 
 
 def _equivalent_damping(outcome):
