@@ -16,8 +16,11 @@ given as the stiffness already in the linear model.  The joint force over a peri
 law's ``aft`` with its exact Jacobian; the curve is continued through the folds.
 
 ``q_max`` is ``max_t |q(t)|`` of each steady state (to machine precision); the peak is
-located between the points as for the polynomial models
-(:func:`jointid.app.predict.predict_peak`).  Stability is read from the folds: on a
+located between the continued points as for the polynomial models
+(:func:`jointid.app.predict.predict_peak`), then refined: steady states across the band where
+``q_max`` is within ``PEAK_BAND`` of the peak, solved again at the fine time samples, and the
+maximum of a quartic fitted through them (:func:`_band_peak`; a parabola through close points
+followed the sampled force's phase-dependent error, ~1e-4 of the peak frequency).  Stability is read from the folds: on a
 single-mode forced response the branch between two folds is the unstable one (saddle-node
 turning points), the rest stable (Hill's method with slider laws is not yet checked).  The steady
 state at the peak is checked by a time integration (:func:`time_check`).
@@ -276,10 +279,64 @@ def _points_about(curve, i):
     return curve.points[max(i - 3, 0):min(i + 4, len(curve))]
 
 
-def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined):
+#: The band of the peak's fit: where the continued curve's ``q_max`` is within this fraction of its largest.
+PEAK_BAND = 0.003
+#: Steady states solved across that band at the fine time samples.
+PEAK_POINTS = 17
+
+
+def _band_about(curve, i):
+    """``(omegas, guesses)``: ``PEAK_POINTS`` frequencies evenly across the band about the curve's peak ``i``
+    where ``q_max >= (1 - PEAK_BAND) q_max[i]`` (to the first points below it), each with the nearest curve
+    point as its guess; ``None`` when the band reaches an end of the curve or holds a fold."""
+    q, w = np.asarray(curve.q_max, float), np.asarray(curve.omega, float)
+    floor = (1.0 - PEAK_BAND) * q[i]
+    lo, hi = i, i
+    while lo > 0 and q[lo] >= floor:
+        lo -= 1
+    while hi < q.size - 1 and q[hi] >= floor:
+        hi += 1
+    if q[lo] >= floor or q[hi] >= floor or np.any(np.diff(w[lo:hi + 1]) <= 0):
+        return None
+    ws = np.linspace(w[lo], w[hi], PEAK_POINTS)
+    return ws, [curve.points[lo + int(np.argmin(np.abs(w[lo:hi + 1] - x)))] for x in ws]
+
+
+def _band_peak(engine, Q, omegas, guesses, n_harmonics):
+    """``(frequency_hz, q_max, solutions)``: the peak of a least-squares quartic in frequency through the steady
+    states at ``omegas`` (fine time samples), or ``None`` (a point failed, or the quartic has no maximum inside).
+
+    Why a fit across the band and not a parabola through the largest points: the sampled projection of a
+    slider law's kinked force errs by ``O(N^-2)`` in ``q_max``, oscillating with the motion's phase against the
+    sample grid, which turns through resonance; over a few 1e-4 of frequency that is a slope error which moves
+    a parabola through close points by ~1e-4 of the peak frequency (Jenkins, 512 samples; tens of its
+    standard errors).  Across the band the oscillation averages out: the quartic's peak frequency agrees with
+    the one of 2048 samples and with a time integration to a few 1e-6.
+    """
+    got = _solve_at(engine, Q, omegas, guesses, n_harmonics)
+    if got is None:
+        return None
+    sol, q = got
+    w = np.asarray(omegas, float)
+    wc, hw = 0.5 * (w[0] + w[-1]), 0.5 * (w[-1] - w[0])
+    c = np.polyfit((w - wc) / hw, q, 4)
+    r = np.roots(np.polyder(c))
+    r = r[(np.abs(r.imag) < 1e-9) & (np.abs(r.real) < 1.0)].real
+    if r.size == 0:
+        return None
+    x = r[int(np.argmax(np.polyval(c, r)))]
+    qp = float(np.polyval(c, x))
+    if not (qp > np.polyval(c, -1.0) and qp > np.polyval(c, 1.0) and np.polyval(np.polyder(c, 2), x) < 0):
+        return None
+    return float((wc + x * hw) / (2 * np.pi)), qp, sol
+
+
+def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined, band=None):
     """``(se_frequency_hz, se_q_max, note)`` from the law's covariance (delta method); ``peak`` is the
     curve's, ``refined`` the nominal points about it at the fine time samples (or ``None``): each
-    perturbed model is solved on them, the same points for every model."""
+    perturbed model is solved on them, the same points for every model.  With ``band`` (``(omegas,
+    nominal solutions)`` of :func:`_band_peak`) each perturbed model's peak is the band fit on the same
+    frequencies instead."""
     from .predict_peaks import predict_peak
 
     idx = [model.names.index(n) for n in INDEPENDENT[model.law_name]]
@@ -287,7 +344,10 @@ def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined):
     if not np.all(np.isfinite(C)):
         return float("nan"), float("nan"), "the joint law's covariance holds undefined entries: no standard error"
     se = np.sqrt(np.clip(np.diag(C), 0.0, None))
-    base = None if refined is None else _peak_on(model.engine(), Q, refined, n_harmonics)
+    if band is not None:
+        base = _band_peak(model.engine(), Q, band[0], band[1], n_harmonics)
+    else:
+        base = None if refined is None else _peak_on(model.engine(), Q, refined, n_harmonics)
     J = np.zeros((2, len(idx)))
 
     def peak_of(values):
@@ -295,7 +355,12 @@ def _peak_stderr(model, Q, n_harmonics, curve, peak, span, refined):
             engine = model.engine(values)
         except (JointidError, ValueError):
             return None, None  # outside the law's domain
-        pk = None if base is None else _peak_on(engine, Q, refined, n_harmonics)
+        if base is None:
+            pk = None
+        elif band is not None:
+            pk = _band_peak(engine, Q, band[0], base[2], n_harmonics)
+        else:
+            pk = _peak_on(engine, Q, refined, n_harmonics)
         if pk is not None:
             return np.asarray(pk[:2]) - np.asarray(base[:2]), True
         _, fresh = _continue(model, Q, n_harmonics, values)
@@ -375,14 +440,27 @@ def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, wi
     if peak is None:
         notes.append(f"no peak in {span[0]:.6g}-{span[1]:.6g} Hz: the response still grows at the edge of the band")
         return out
-    # the points about the peak solved again with more time samples (see _time_samples), the peak located on them
-    refined = _refined_points(model.engine(), Q, _points_about(r, peak[2]), n_harmonics)
-    fine = None if refined is None else _peak_on(model.engine(), Q, refined, n_harmonics)
+    # steady states across the peak's band solved again with more time samples (see _time_samples), the peak
+    # that of a quartic fitted through them (_band_peak); else the points about the peak, a parabola
+    about = _band_about(r, peak[2])
+    band = None if about is None else _band_peak(model.engine(), Q, about[0], about[1], n_harmonics)
+    refined = fine = None
+    if band is not None:
+        fine = band[:2]
+        near = band[2][int(np.argmin(np.abs(about[0] - 2 * np.pi * fine[0])))]
+        got = _solve_at(model.engine(), Q, [2 * np.pi * fine[0]], [near], n_harmonics)  # the steady state at the peak
+        at_peak = near if got is None else got[0][0]
+    else:
+        refined = _refined_points(model.engine(), Q, _points_about(r, peak[2]), n_harmonics)
+        fine = None if refined is None else _peak_on(model.engine(), Q, refined, n_harmonics)
+        at_peak = None if fine is None else refined[3]
+        notes.append("the peak located by a parabola through close points (no fit across its band): its frequency "
+                     "may be off by ~1e-4 from the sampled joint force")
     if fine is None:
         notes.append(f"the peak's points could not be solved again at {_time_samples(n_harmonics, True)} time "
                      f"samples: the peak is the curve's at {_time_samples(n_harmonics)} (about 0.05 % off)")
     out["peak"] = tuple(float(x) for x in (peak if fine is None else fine)[:2])
-    check = time_check(model, Q, refined[3] if fine is not None else r.points[peak[2]])
+    check = time_check(model, Q, at_peak if fine is not None else r.points[peak[2]])
     out["time_check"] = check
     if check["error"]:
         notes.append(f"time integration from the peak's steady state failed ({check['error']})")
@@ -391,7 +469,8 @@ def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, wi
                      f"the harmonic balance with {n_harmonics} harmonics: give more (--harmonics)")
     if uncertainty:
         try:
-            sf, sq, why = _peak_stderr(model, Q, n_harmonics, r, peak, span, refined if fine else None)
+            sf, sq, why = _peak_stderr(model, Q, n_harmonics, r, peak, span, refined if fine else None,
+                                       None if band is None else (about[0], band[2]))
         except (JointidError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
             sf, sq, why = float("nan"), float("nan"), f"standard error not computed: {exc}"
         out["stderr"] = (sf, sq)
