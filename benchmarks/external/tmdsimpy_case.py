@@ -137,28 +137,35 @@ class Layout:
         return float(np.hypot(j[1], j[2]))
 
 
+def receptance_apply(vs, lay, w, R):
+    """``E(w)^-1 R`` for tmdsimpy's harmonic dynamic stiffness ``E``, one diagonal block (harmonic) at a time."""
+    E = hutils.harmonic_stiffness(vs.M, vs.C, vs.K, w, lay.h, calc_grad=False)[0]
+    out = np.empty_like(R)
+    for k in lay.h:
+        sl = slice(0, lay.n) if k == 0 else slice((2 * k - 1) * lay.n, (2 * k + 1) * lay.n)
+        out[sl] = np.linalg.solve(E[sl, sl], R[sl])
+    return out
+
+
 def newton_tmd(vs, lay, w, Fl, U0, tol=1e-9, max_iter=40):
     """Full Newton on tmdsimpy's hbm_res at fixed w, stopped like jointid's solve: on the residual as a
     displacement (the linear receptance times the force residual, harmonic by harmonic) relative to the solution."""
-    E = hutils.harmonic_stiffness(vs.M, vs.C, vs.K, w, lay.h, calc_grad=False)[0]
-    Einv = np.linalg.inv(E)
     U = np.array(U0, float)
     it = 0
     R, J, _ = vs.hbm_res(np.hstack((U, w)), Fl, lay.h, Nt=lay.N)
-    err = np.linalg.norm(Einv @ R) / np.linalg.norm(U)
+    err = np.linalg.norm(receptance_apply(vs, lay, w, R)) / np.linalg.norm(U)
     while err >= tol and it < max_iter:
         U = U - np.linalg.solve(J, R)
         it += 1
         R, J, _ = vs.hbm_res(np.hstack((U, w)), Fl, lay.h, Nt=lay.N)
-        err = np.linalg.norm(Einv @ R) / np.linalg.norm(U)
+        err = np.linalg.norm(receptance_apply(vs, lay, w, R)) / np.linalg.norm(U)
     return U, it, err
 
 
 def tmd_displacement_residual(vs, lay, U, w, Fl):
     """|E^-1 R(U)| / |U| of tmdsimpy's hbm_res: the force residual as a displacement, relative."""
     R = vs.hbm_res(np.hstack((U, w)), Fl, lay.h, Nt=lay.N)[0]  # its hysteretic AFT has no calc_grad=False
-    E = hutils.harmonic_stiffness(vs.M, vs.C, vs.K, w, lay.h, calc_grad=False)[0]
-    return float(np.linalg.norm(np.linalg.solve(E, R)) / np.linalg.norm(U))
+    return float(np.linalg.norm(receptance_apply(vs, lay, w, R)) / np.linalg.norm(U))
 
 
 def jointid_residual(e, lay, U, w, force):
