@@ -424,8 +424,9 @@ def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, wi
 
     Returns a dict: ``frequency_hz``, ``q_max``, ``stable`` (arrays along the curve), ``folds_hz``,
     ``peak`` (``(frequency_hz, q_max)`` or ``None``), ``stderr`` (two floats, ``nan`` when not
-    available), ``span`` (the band used), ``time_check`` (:func:`time_check` of the peak's point) and
-    ``notes``.
+    available), ``span`` (the band used), ``time_check`` (:func:`time_check` of the peak's point),
+    ``notes`` and, when the peak is the band fit (:func:`_band_peak`), ``peak_band``: its frequencies
+    [rad/s] and steady states.
     """
     from .predict_peaks import predict_peak
 
@@ -447,6 +448,7 @@ def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, wi
     refined = fine = None
     if band is not None:
         fine = band[:2]
+        out["peak_band"] = (about[0], band[2])  # the frequencies [rad/s] and steady states of the band fit
         near = band[2][int(np.argmin(np.abs(about[0] - 2 * np.pi * fine[0])))]
         got = _solve_at(model.engine(), Q, [2 * np.pi * fine[0]], [near], n_harmonics)  # the steady state at the peak
         at_peak = near if got is None else got[0][0]
