@@ -20,10 +20,11 @@ located between the continued points as for the polynomial models
 (:func:`jointid.app.predict.predict_peak`), then refined: steady states across the band where
 ``q_max`` is within ``PEAK_BAND`` of the peak, solved again at the fine time samples, and the
 maximum of a quartic fitted through them (:func:`_band_peak`; a parabola through close points
-followed the sampled force's phase-dependent error, ~1e-4 of the peak frequency).  Stability is read from the folds: on a
-single-mode forced response the branch between two folds is the unstable one (saddle-node
-turning points), the rest stable (Hill's method with slider laws is not yet checked).  The steady
-state at the peak is checked by a time integration (:func:`time_check`).
+followed the sampled force's phase-dependent error, ~1e-4 of the peak frequency).
+Stability is read from the folds: on a single-mode forced response the branch between two
+folds is the unstable one (saddle-node turning points), the rest stable (Hill's method with
+slider laws is not yet checked).  The steady state at the peak is checked by a time integration
+(:func:`time_check`).
 
 Standard errors of the peak: the law's parameter covariance (``hysteretic_model.covariance``
 over the independent parameters ``k, c, kt, Fs`` or ``k, c, K_T, F_S, chi, beta``)
