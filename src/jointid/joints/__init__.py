@@ -59,6 +59,7 @@ Laws
                           discretisation :func:`discretize_iwan4`)
 :class:`BoucWen`          smooth hysteresis (exponent one, integrated exactly between samples)
 :class:`ExactReversals`   a slider law whose ``aft`` reverses at the exact extrema of the motion
+:class:`Parallel`         laws side by side on one relative motion (e.g. an Iwan joint with a cubic spring)
 
 The closed forms and references are in ``docs/joint-laws.md``.
 
@@ -75,6 +76,7 @@ Examples
 from ._core import JointLaw, harmonic_motion, loop_energy
 from .boucwen import BoucWen
 from .iwan import Iwan4, discretize_iwan4
+from .parallel import Parallel
 from .polynomial import TERM_FUNCTIONS, PolynomialLaw
 from .reversals import ExactReversals
 from .sliders import DiscreteIwan, Jenkins, jenkins_harmonic_stiffness
@@ -89,6 +91,7 @@ __all__ = [
     "discretize_iwan4",
     "BoucWen",
     "ExactReversals",
+    "Parallel",
     "jenkins_harmonic_stiffness",
     "harmonic_motion",
     "loop_energy",
