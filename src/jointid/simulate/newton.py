@@ -19,7 +19,6 @@ is passed by name:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
