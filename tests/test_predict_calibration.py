@@ -107,7 +107,8 @@ def test_peak_standard_errors_are_calibrated(name):
               f"q {base[1] / ref[1] - 1:+.2e};"
               f" mean z {np.round(z.mean(axis=0), 2)}, sd {np.round(z.std(axis=0, ddof=1), 2)}, |z| < 1.96: {frac}")
         assert np.all((frac >= 0.85) & (frac <= 1.0)), frac
-        # small against the unit spread (the 7-point parabola's bias at the true law was -65 se (Jenkins Q = 14,
-        # fallen back to 128 samples) and +3 se (Q = 17.5)); measured +0.53 / +0.59 (seed 2024), +0.03 / +0.14
-        # (another 30), so a shift of about 0.3 se may remain (the generator's RK4 holds the sliders over a step)
-        assert np.all(np.abs(z.mean(axis=0)) < 0.75), z.mean(axis=0)
+        # the mean within 4 standard errors of the mean of n calibrated z (0.73 for 30): the 7-point parabola's
+        # bias at the true law was -65 se (Jenkins Q = 14, fallen back to 128 samples) and +3 se (Q = 17.5);
+        # measured now +0.53 / +0.59 (seed 2024), +0.03 / +0.14 (another 30): a shift of about 0.3-0.6 se may
+        # remain (open; suspected: the generator's RK4 holds the sliders over a step)
+        assert np.all(np.abs(z.mean(axis=0)) < 4.0 / np.sqrt(len(z))), z.mean(axis=0)
