@@ -1,4 +1,4 @@
-"""A campaign's beam as a multi-mode structure model with a joint element (the structure route of issue 22).
+"""A campaign's beam as a multi-mode structure model with a joint element.
 
 A test engineer with a stepped-sine campaign of a jointed beam has its ``[structure]`` table:
 the finite element beam updated to the random test's natural frequencies (the joint stuck,
