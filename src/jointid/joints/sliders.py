@@ -48,6 +48,7 @@ def play_block(s, x, phi, end_only=False):
     ``end_only`` the state after the last sample ``(B, m)``.
     """
     B, T = s.shape
+    m = x.shape[-1]
     kn = np.zeros((B, T), dtype=bool)
     kn[:, 0] = True
     if T > 2:
@@ -58,17 +59,20 @@ def play_block(s, x, phi, end_only=False):
     order = np.argsort(~kn, axis=1, kind="stable")[:, :q]  # knot samples first, in time order
     rows = np.arange(B)
     pos = np.where(np.arange(q)[None, :] < nk[:, None], order, order[rows, nk - 1][:, None])  # pad: last knot again
+    sk = np.ascontiguousarray(s[rows[:, None], pos].T)[:, :, None]  # (q, B, 1): the knots' samples
+    lo = np.subtract(sk, phi)  # the bounds of every knot's step at once (the same elementwise values)
+    hi = np.add(sk, phi)
     S = np.empty((q + 1,) + x.shape)
     S[0] = x
     for i in range(q):  # a repeated knot is the same step again (a no-op)
-        sk = s[rows, pos[:, i]][:, None]
-        S[i + 1] = np.minimum(np.maximum(S[i], sk - phi), sk + phi)
+        np.maximum(S[i], lo[i], out=S[i + 1])
+        np.minimum(S[i + 1], hi[i], out=S[i + 1])
     before = np.cumsum(kn, axis=1) - kn  # knots strictly before each sample: the stretch's start state
     if end_only:
         st = s[:, -1:]
         return np.minimum(np.maximum(S[before[:, -1], rows], st - phi), st + phi)
-    st = s.T[:, :, None]
-    X = S[before.T, rows[None, :]]
+    st = np.ascontiguousarray(s.T)[:, :, None]
+    X = np.take(S.reshape(-1, m), (before.T * B + rows[None, :]).ravel(), axis=0).reshape(T, B, m)
     bound = np.subtract(st, phi)
     np.maximum(X, bound, out=X)
     np.add(st, phi, out=bound)
@@ -106,9 +110,10 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     lasts = np.empty((n, nb, m), dtype=np.intp) if jacobian else None
     stack = (batch if batch else (1,)) + (m,)  # per sample: the sample loop's operand shape
     tb = max(2, BLOCK_ELEMENTS // max(nb * m, 1))
-    for t0 in range(0, 2 * n, tb):
-        t1 = min(2 * n, t0 + tb)
-        if t1 <= n and not jacobian:
+    starts = list(range(0, n, tb)) + list(range(n, 2 * n, tb))  # blocks split at the second sweep's start
+    for t0 in starts:
+        t1 = min(n if t0 < n else 2 * n, t0 + tb)
+        if t1 <= n and not jacobian:  # first sweep without the Jacobian: only its end state counts
             x = play_block(ext[:, t0:t1], x, phi, end_only=True)
             continue
         X = play_block(ext[:, t0:t1], x, phi)
