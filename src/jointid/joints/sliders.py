@@ -35,20 +35,14 @@ def jenkins_harmonic_stiffness(s):
 BLOCK_ELEMENTS = 1 << 16
 
 
-def play_block(s, x, phi, end_only=False):
-    """Slider positions after each sample of ``s`` (batch ``B``, ``T`` samples), starting from ``x`` (B, m).
+def _knot_states(s, x, phi):
+    """The states after each knot of ``s`` (B, T) from ``x`` (B, m), for :func:`play_block`.
 
-    Exactly the step ``x <- min(max(x, s_t - phi), s_t + phi)`` repeated over the samples, without
-    a loop over them: on a stretch where ``s`` is monotone the steps compose to one step from the
-    stretch's start (increasing: ``max(x_start, s_t - phi)``, the ``min`` a no-op; decreasing
-    alike), and ``max``/``min`` only select, so the values are the loop's to the bit.  The loop
-    runs over the knots only (the first sample and every sample where the sign of the
-    difference changes; a flat step counts as its own sign, so equal samples only add knots,
-    and a NaN makes every neighbouring sample a knot).  Returns ``(T, B, m)``, or with
-    ``end_only`` the state after the last sample ``(B, m)``.
+    Returns ``S`` (q + 1, B, m) (``S[0] = x``, ``S[i + 1]`` after the ``i``-th knot; a batch with
+    fewer knots repeats its last one, a no-op), the knots' samples ``pos`` (B, q) and the number
+    of knots strictly before each sample ``before`` (B, T).
     """
     B, T = s.shape
-    m = x.shape[-1]
     kn = np.zeros((B, T), dtype=bool)
     kn[:, 0] = True
     if T > 2:
@@ -68,15 +62,81 @@ def play_block(s, x, phi, end_only=False):
         np.maximum(S[i], lo[i], out=S[i + 1])
         np.minimum(S[i + 1], hi[i], out=S[i + 1])
     before = np.cumsum(kn, axis=1) - kn  # knots strictly before each sample: the stretch's start state
+    return S, pos, before
+
+
+def play_block(s, x, phi, end_only=False):
+    """Slider positions after each sample of ``s`` (batch ``B``, ``T`` samples), starting from ``x`` (B, m).
+
+    Exactly the step ``x <- min(max(x, s_t - phi), s_t + phi)`` repeated over the samples, without
+    a loop over them: on a stretch where ``s`` is monotone the steps compose to one step from the
+    stretch's start (increasing: ``max(x_start, s_t - phi)``, the ``min`` a no-op; decreasing
+    alike), and ``max``/``min`` only select, so the values are the loop's to the bit.  The loop
+    runs over the knots only (the first sample and every sample where the sign of the
+    difference changes; a flat step counts as its own sign, so equal samples only add knots,
+    and a NaN makes every neighbouring sample a knot).  Returns ``(T, B, m)``, or with
+    ``end_only`` the state after the last sample ``(B, m)``.
+    """
+    B, T = s.shape
+    m = x.shape[-1]
+    S, _, before = _knot_states(s, x, phi)
+    rows = np.arange(B)
     if end_only:
         st = s[:, -1:]
         return np.minimum(np.maximum(S[before[:, -1], rows], st - phi), st + phi)
-    st = np.ascontiguousarray(s.T)[:, :, None]
     X = np.take(S.reshape(-1, m), (before.T * B + rows[None, :]).ravel(), axis=0).reshape(T, B, m)
+    st = np.ascontiguousarray(s.T)[:, :, None]
     bound = np.subtract(st, phi)
     np.maximum(X, bound, out=X)
     np.add(st, phi, out=bound)
     return np.minimum(X, bound, out=X)
+
+
+def _first_sweep(s, x, phi):
+    """End state of one sweep over ``s`` (B, T) from ``x`` (B, m) and each element's latest slip step.
+
+    For finite ``s`` and ``x`` only.  An element moves monotonically over a stretch between
+    knots (and over the open stretch after the last knot), so it moved there exactly when the
+    stretch's end state differs from its start state; its latest slip lies in the last such
+    stretch, at the latest sample whose state differs from the one before (usually the
+    stretch's last sample: the walk back only continues past samples where the rounded bound
+    did not change).  The states are :func:`play_block`'s (one step from the stretch's start),
+    so the steps found are those of the sample loop.  Returns ``(x_end (B, m), last (B, m))``
+    (``last`` -1: the element never moved).
+    """
+    B, T = s.shape
+    m = x.shape[-1]
+    S, pos, before = _knot_states(s, x, phi)
+    q = S.shape[0] - 1
+    rows = np.arange(B)
+    st = s[:, -1:]
+    x_end = np.minimum(np.maximum(S[before[:, -1], rows], st - phi), st + phi)
+    ends = np.concatenate([S[1:], x_end[None]])  # (q + 1, B, m): stretch i from S[i] to ends[i]
+    end_at = np.concatenate([pos.T, np.full((1, B), T - 1)])  # (q + 1, B): the stretch's last sample
+    start_at = np.concatenate([np.full((1, B), -1), pos.T])  # sample of the start state (-1: before the sweep)
+    moved = ends != S
+    last = np.full((B, m), -1, dtype=np.intp)
+    anym = moved.any(axis=0)
+    if not anym.any():
+        return x_end, last
+    istar = q - np.argmax(moved[::-1], axis=0)  # the last stretch where each element moved
+    b, i = np.nonzero(anym)
+    j = istar[b, i]
+    t = end_at[j, b]
+    lim = start_at[j, b]
+    x_start = S[j, b, i]
+    cur = ends[j, b, i]
+    p = phi[i]
+    while b.size:
+        tp = t - 1
+        inner = tp > lim
+        sp = s[b, np.where(inner, tp, 0)]
+        prev = np.where(inner, np.minimum(np.maximum(x_start, sp - p), sp + p), x_start)
+        done = prev != cur
+        last[b[done], i[done]] = t[done]
+        keep = ~done
+        b, i, t, lim, x_start, cur, p = b[keep], i[keep], tp[keep], lim[keep], x_start[keep], cur[keep], p[keep]
+    return x_end, last
 
 
 def _slider_aft(u, k, phi, x0, jacobian, centre=False):
@@ -110,9 +170,15 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     lasts = np.empty((n, nb, m), dtype=np.intp) if jacobian else None
     stack = (batch if batch else (1,)) + (m,)  # per sample: the sample loop's operand shape
     tb = max(2, BLOCK_ELEMENTS // max(nb * m, 1))
-    starts = list(range(0, n, tb)) + list(range(n, 2 * n, tb))  # blocks split at the second sweep's start
+    if jacobian and n <= tb and nb and np.isfinite(ub).all() and np.isfinite(x).all():
+        x, last = _first_sweep(ub, x, phi)  # the first sweep's end state and latest slips, without its states
+        starts = [n]
+    elif jacobian:  # both sweeps in blocks of samples
+        starts = list(range(0, 2 * n, tb))
+    else:  # the first sweep apart: only its end state counts
+        starts = list(range(0, n, tb)) + list(range(n, 2 * n, tb))
     for t0 in starts:
-        t1 = min(n if t0 < n else 2 * n, t0 + tb)
+        t1 = min(n if t0 < n and not jacobian else 2 * n, t0 + tb)
         if t1 <= n and not jacobian:  # first sweep without the Jacobian: only its end state counts
             x = play_block(ext[:, t0:t1], x, phi, end_only=True)
             continue
