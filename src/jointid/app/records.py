@@ -288,17 +288,23 @@ def flag_group_outliers(outcomes) -> list:
                                       f"a wrong channel or another structure?",
                      {"omega1": outcomes[i].fit.omega1, "group_median_omega1": median, "ratio": ratio})
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
-        for i, (c, se, ratio, median, scale, broken) in damping.items():
+        for i, (c, se, ratio, median, scale, broken, moved) in damping.items():
             pm = f" (± {se:.2g})" if se is not None and np.isfinite(se) else ""
+            off = (f"is {ratio:.4g} times the group's trend of c_eq against q_max ({median:.6g} there)"
+                   if ratio is not None else "is not off the group's trend of c_eq against q_max by the trend check's limits")
             why = "".join([f"; the acceleration times {1 / scale:.3g} would put the record on it" if scale else "",
                            f"; its energy dissipated per cycle over q_max is {broken:.3g} times off that of a record "
-                           f"with {'a smaller' if ratio < 1 else 'a larger'} q_max (a joint's does not fall as q_max "
-                           f"grows)" if broken else ""])
-            f = Flag("scale_outlier", f"equivalent viscous damping c_eq = {c:.6g}{pm} is {ratio:.4g} times the "
-                                      f"group's trend of c_eq against q_max ({median:.6g} there){why}: acceleration "
+                           f"with {'a smaller' if ratio is None or ratio < 1 else 'a larger'} q_max (a joint's does "
+                           f"not fall as q_max grows)" if broken else "",
+                           f"; its energy dissipated per cycle over q_max (q_max = {outcomes[i].fit.q_max:.4g}) "
+                           f"breaks the rule that it does not fall as q_max grows against records with a q_max "
+                           f"{max(moved, 1 / moved):.3g} times {'larger' if moved < 1 else 'smaller'} (an "
+                           f"acceleration unit moves q_max and leaves it as it was)" if moved else ""])
+            f = Flag("scale_outlier", f"equivalent viscous damping c_eq = {c:.6g}{pm} {off}{why}: acceleration "
                                       f"or force in g instead of m/s^2 or N, or a mis-scaled channel?",
                      {"c": outcomes[i].fit.c, "c_equivalent": c, "c_equivalent_stderr": se, "group_trend_c": median,
-                      "ratio": ratio, "acceleration_scale": scale, "dissipation_ratio": broken})
+                      "ratio": ratio, "acceleration_scale": scale, "dissipation_ratio": broken,
+                      "amplitude_ratio": moved})
             outcomes[i] = replace(outcomes[i], flags=outcomes[i].flags + (f,))
     return outcomes
 
@@ -322,8 +328,17 @@ def _damping_outliers(outcomes, members) -> dict:
     nothing beyond the viscous damping below its slip amplitude).  A force wrong by a factor on
     such a record is not told from it.
 
-    Returns ``{index: (c_eq, stderr, ratio to the trend, trend value, acceleration scale or None,
-    dissipation ratio or None)}``.
+    A record is also a scale outlier, on or off the trend, when its ``W / q_max`` is that of
+    records whose amplitudes are 3 times larger or smaller than its own, the wrong way round
+    (:func:`monotone_outliers` along ``q_max``, by 6 standard errors of the dissipation): an
+    acceleration in other units leaves ``W / q_max`` as it was and moves ``q_max`` by the factor.
+    The resonant dwell with its acceleration in g lands at a tenth of the group's amplitudes,
+    where the extrapolated trend is too uncertain to call its ``c_eq`` off, yet it dissipates per
+    unit amplitude as much as the records 8 times larger.
+
+    Returns ``{index: (c_eq, stderr, ratio to the trend or None, trend value or None, acceleration
+    scale or None, dissipation ratio or None, amplitude ratio or None)}``; the amplitude ratio is
+    the factor along ``q_max`` (below 1: the record's ``q_max`` is too small).
     """
     ceq = {i: _equivalent_damping(outcomes[i]) for i in members}
     q = {i: outcomes[i].fit.q_max for i in members}
@@ -331,20 +346,32 @@ def _damping_outliers(outcomes, members) -> dict:
     se = {i: v[1] for i, v in ceq.items()}
     kw = {"factor": (3.0, 8.0), "stderr": se}
     vertical = trend_outliers(q, c, **kw)
-    if not vertical:
-        return {}
-    scaled = trend_outliers(q, c, invariant=-1.0, **kw)
     w = {i: outcomes[i].signals.omega * q[i] for i in members}
-    dissipation = monotone_outliers(q, {i: c[i] * w[i] if c[i] is not None else None for i in members},
-                                    stderr={i: se[i] * w[i] if se[i] is not None else None for i in members},
-                                    factor=(3.0, 8.0))
+    wq = {i: c[i] * w[i] if c[i] is not None else None for i in members}  # W / (pi q_max)
+    wq_se = {i: se[i] * w[i] if se[i] is not None else None for i in members}
+    scaled = trend_outliers(q, c, invariant=-1.0, **kw) if vertical else {}
+    dissipation = monotone_outliers(q, wq, stderr=wq_se, factor=(3.0, 8.0)) if vertical else {}
     small = float(np.median([v for v in q.values() if v is not None and np.isfinite(v)]))
-    out = {}
-    for i, (ratio, trend, _) in vertical.items():
+    sticking = set()
+    for i, (ratio, _, _) in vertical.items():
         unit = i in scaled and _stiffness_agrees(outcomes, members, i, scaled[i][2])
         if ratio < 1 and q[i] <= small and not unit and i not in dissipation:
-            continue  # a joint that sticks at the smaller amplitudes
-        out[i] = (c[i], se[i], ratio, trend, scaled[i][2] if i in scaled else None, dissipation.get(i))
+            sticking.add(i)  # a joint that sticks at the smaller amplitudes, unless its q_max is moved (below)
+    # the rule along q_max among the records not already off the trend (one of those would break it with others)
+    rest = [i for i in members if i not in vertical or i in sticking]
+    moved = monotone_outliers({i: q[i] for i in rest}, {i: wq[i] for i in rest}, stderr=wq_se, factor=3.0,
+                              along="x")
+    for i, r in moved.items():  # below 1: the record's q_max is too small for its dissipation
+        lo = any(q[j] > q[i] and wq[j] is not None and wq[j] < wq[i] for j in rest if j != i)
+        moved[i] = 1.0 / r if lo else r
+    out = {}
+    for i, (ratio, trend, _) in vertical.items():
+        if i in sticking and i not in moved:
+            continue
+        out[i] = (c[i], se[i], ratio, trend, scaled[i][2] if i in scaled else None, dissipation.get(i), moved.get(i))
+    for i, r in moved.items():
+        if i not in out:
+            out[i] = (c[i], se[i], None, None, None, dissipation.get(i), r)
     return out
 
 

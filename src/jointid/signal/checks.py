@@ -545,7 +545,7 @@ def trend_outliers(x, y, *, factor, min_records: int = 5, max_pairs_n: int = 60,
     return out
 
 
-def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3) -> dict:
+def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3, along: str = "y") -> dict:
     """Members of a group that break the rule "``y`` does not decrease as ``x`` grows" by a large factor.
 
     A pair of members breaks it when the one with the smaller ``x`` has the larger ``y``, by more
@@ -557,7 +557,8 @@ def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3) -> dic
     friction damping (Jenkins, Iwan) ``W`` is convex in the amplitude and zero at zero, so
     ``W / q_max`` does not decrease.  A force in other units multiplies it by the unit's factor at
     the same amplitude; an acceleration in other units leaves it unchanged and moves the
-    amplitude.
+    amplitude: that break is measured along ``x`` (``along="x"``), as the factor by which the
+    member's ``x`` would have to move for the pair to keep the rule.
 
     Parameters
     ----------
@@ -569,6 +570,11 @@ def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3) -> dic
         with a larger ``x``.
     stderr : mapping key -> float, optional
         Standard error of each ``y``.
+    along : {"y", "x"}
+        The factor of a breaking pair: the ratio of its ``y`` (the larger over the smaller), or of
+        its ``x`` (the larger over the smaller; the pair's ``y`` must still differ by ``Z_LIMIT``
+        standard errors).  With ``"x"``, ``below`` applies to the member with the larger ``x``
+        (its ``x`` too large) and ``above`` to the one with the smaller ``x``.
 
     Returns
     -------
@@ -582,7 +588,13 @@ def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3) -> dic
     >>> w[3] /= 9.81
     >>> {k: round(v, 3) for k, v in monotone_outliers(q, w, factor=3.0).items()}
     {3: 8.175}
+    >>> w = {i: 5.0 * q[i] + 0.01 for i in range(6)}
+    >>> q[5] /= 9.81
+    >>> {k: round(v, 3) for k, v in monotone_outliers(q, w, factor=3.0, along="x").items()}
+    {5: 8.175}
     """
+    if along not in ("x", "y"):
+        raise ValueError(f"along must be 'x' or 'y', not {along!r}")
     keys = [k for k in y if k in x and all(v is not None and np.isfinite(v) and v > 0 for v in (x[k], y[k]))]
     if len(keys) < min_records:
         return {}
@@ -595,7 +607,7 @@ def monotone_outliers(x, y, *, factor, stderr=None, min_records: int = 3) -> dic
             a, b = b, a
         if not x[a] < x[b] or y[a] <= y[b] + Z_LIMIT * float(np.hypot(se[a], se[b])):
             return None
-        ratio = y[a] / y[b]
+        ratio = y[a] / y[b] if along == "y" else x[b] / x[a]
         return ratio if ratio > min(below, above) else None
 
     pairs = {}
