@@ -154,7 +154,9 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     The sweeps are evaluated a monotone stretch of ``u`` at a time (:func:`play_block`), the
     values bit-identical to the sample-by-sample play operator; the force's ``x @ k`` is the
     same matrix product per sample as the sample loop's (one ``dot`` or ``gemv`` per sample
-    over the same batch), stacked in one call.
+    over the same batch), stacked in one call.  Without the Jacobian the first sweep gives its
+    end state only; with it (finite motion and start, one block) its end state and each
+    element's latest slip (:func:`_first_sweep`), not every state.
     """
     u = np.asarray(u, float)
     n = u.shape[-1]
