@@ -199,7 +199,8 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
             fT[a - n : t1 - n] = ktot * ext[:, a:t1].T - np.matmul(X2.reshape((t1 - a,) + stack), k).reshape(t1 - a, nb)
             if jacobian:
                 dest = lasts[a - n : t1 - n]  # step of the latest slip at each sample, then its sample
-                dest[...] = np.where(C[a - t0 :], np.arange(a, t1)[:, None, None], -1)
+                dest[...] = -1  # written in place: fresh pages cost more than the arithmetic here
+                np.copyto(dest, np.arange(a, t1)[:, None, None], where=C[a - t0 :])
                 np.maximum(dest[0], last, out=dest[0])
                 np.maximum.accumulate(dest, axis=0, out=dest)
                 last = dest[-1].copy()
@@ -210,14 +211,16 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
         return f, None
     L = lasts
     seen = L >= 0
-    flat = (L + (np.arange(nb)[None, :, None] * (n * n) + np.arange(n)[:, None, None] * n))[seen]
+    if centre:  # the same elements at every sample (summed as a subset)
+        k_never = np.array([k[row < 0].sum() for row in L[0]])
+    np.add(L, np.arange(nb)[None, :, None] * (n * n) + np.arange(n)[:, None, None] * n, out=L)  # the bins, in place
+    flat = L.ravel() if seen.all() else L[seen]
     # the weights summed per bin in the order of (sample, batch, element), as before: the same bits
     D = np.bincount(flat, weights=np.broadcast_to(k, L.shape)[seen], minlength=nb * n * n)
     D = np.asarray(D, dtype=float).reshape(nb, n, n)  # (integer when nothing slipped)
     np.negative(D, out=D)
     D[:, np.arange(n), np.arange(n)] += ktot
     if centre:
-        k_never = np.array([k[row < 0].sum() for row in L[0]])  # the same elements at every sample (summed as a subset)
         ub = u.reshape(nb, n)
         imax, imin = np.argmax(ub, axis=-1), np.argmin(ub, axis=-1)
         D[np.arange(nb), :, imax] -= 0.5 * k_never[:, None]
