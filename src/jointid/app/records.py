@@ -244,7 +244,9 @@ def flag_group_outliers(outcomes) -> list:
     acceleration in g instead of m/s^2 scales the identified damping by about 9.81 and leaves
     ``omega1`` nearly unchanged near resonance; a wrong channel), unless it lies below the trend at the
     group's smaller amplitudes in a way no factor on the acceleration explains and a sticking friction joint does
-    (:func:`_damping_outliers`).  Each limit is also at least 6 robust standard deviations of the group's
+    (:func:`_damping_outliers`); and a record whose energy dissipated per cycle over ``q_max`` is that of records
+    3 times larger or smaller in ``q_max``, the wrong way round (``scale_outlier`` with ``amplitude_ratio``: an
+    acceleration unit moves ``q_max`` and leaves that energy as it was).  Each limit is also at least 6 robust standard deviations of the group's
     log values, so only a record far outside the group's own spread is flagged.  Outliers of the pooled fits themselves (records
     the group model does not explain) are to be added here, after the pooled fit.
 
