@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import warnings
 
 import numpy as np
@@ -188,6 +189,10 @@ def test_cli_writes_the_set_and_says_extrapolated(handmade, tmp_path, capsys):
     assert all(e["peak_frequency_hz_ci95"] and e["peak_q_max_stderr"] > 0 for e in d["predictions"])
     assert (out / "report.html").is_file() and "EXTRAPOLATED" in (out / "report.txt").read_text()
     assert (out / "figures" / "predict_p1.png").is_file()
+    # each warning of a prediction is its own paragraph of the HTML report, after the prediction's line
+    paras = [re.sub(r"\s+", " ", x) for x in re.findall(r"<p>(.*?)</p>", (out / "report.html").read_text(), re.S)]
+    warned = [x for x in paras if "warning:" in x]
+    assert warned and all(x.startswith("warning:") for x in warned), warned
     # the same command again replaces its own set
     assert main(["predict", str(handmade / "results.json"), "--force-levels", "1.5", "--out", str(out),
                  "--no-uncertainty", "--quiet"]) == 0

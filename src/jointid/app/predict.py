@@ -578,7 +578,9 @@ def _beyond_fitted(entry, pq, what):
         return False, None
     if rng[0] * (1 - 1e-9) <= pq <= rng[1] * (1 + 1e-9):
         return False, None
-    where = (f"{100 * (pq / rng[1] - 1):.2g} % above the largest fitted q_max {rng[1]:.4g}" if pq > rng[1]
+    pct = 100 * (pq / rng[1] - 1)
+    where = (f"{pct:.0f} % above" if pct >= 10 else f"{pct:.2g} % above")  # not "1.6e+02 %"
+    where = (f"{where} the largest fitted q_max {rng[1]:.4g}" if pq > rng[1]
              else f"below the smallest fitted q_max {rng[0]:.4g}")
     return True, f"peak amplitude {pq:.4g} {where}: {what}"
 
@@ -845,8 +847,8 @@ def write_predictions(result: PredictResult, out, inputs=()) -> dict:
             tables=[("Peaks", prediction_rows(result.predictions), None)])]
         warn = [ln for ln in result.lines() if "EXTRAPOLATED" in ln or "warning" in ln or "FAILED" in ln
                 or "no prediction" in ln or "no peak" in ln]
-        if warn:
-            sections.append(Section("Warnings", paragraphs=warn))
+        if warn:  # a prediction's warnings on lines of their own (HTML joins a paragraph's lines)
+            sections.append(Section("Warnings", paragraphs=[seg.strip() for ln in warn for seg in ln.split("\n")]))
         for p, name, png in figs:
             caption = (f"predicted q_max against frequency, preload {p} (dashed: unstable; crosses: peaks with "
                        "95 % intervals; circles: measured dwells of a fitted level, fundamental amplitude)")

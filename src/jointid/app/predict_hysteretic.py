@@ -434,7 +434,9 @@ def hysteretic_response(model: HystereticModel, Q, span_hz, n_harmonics=5, *, wi
     _, curve = _continue(model, Q, n_harmonics)
     r, peak, span = predict_peak(None, Q, span_hz, n_harmonics, widen=widen, curve=curve, f1_hz=model.f1_hz)
     f_hz = r.omega / (2 * np.pi)
-    notes = ["stability from the folds (the branch between two folds unstable)"]
+    notes = []
+    if r.folds:  # sliders have no Hill analysis here
+        notes.append("stability from the folds (the branch between two folds unstable)")
     out = {"frequency_hz": f_hz, "q_max": np.asarray(r.q_max, float), "stable": r.stable,
            "folds_hz": tuple(float(f_hz[i]) for i in r.folds), "peak": None,
            "stderr": (float("nan"), float("nan")), "span": tuple(float(v) for v in span), "notes": notes,
