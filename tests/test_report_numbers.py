@@ -174,3 +174,19 @@ def test_model_choice_names_the_rule_that_decided():
                                        ("bic", "lowest BIC", "held-out")):
         line = model_choice_lines(dict(s, selection=[dict(s["selection"][0], decided_by=decided_by)]))[0]
         assert said in line and not_said not in line, line
+
+
+def test_selected_hysteretic_law_parameters_carry_their_units():
+    """A selected Jenkins law's parameters are not terms of the library: their units come from the law's fit
+    (results.json selection[*].hysteretic_model.units), not left blank."""
+    from jointid.report.summary import selected_model_rows
+
+    names = ["k", "c", "kt", "Fs", "slip_displacement"]
+    units = {"k": "N/m", "c": "N s/m", "kt": "N/m", "Fs": "N", "slip_displacement": "m"}
+    entry = {"name": "Jenkins", "selected": True, "hysteretic_law": "jenkins", "parameter_names": names,
+             "parameters": [3.5e4, 5.6, 1.1e4, 10.7, 1e-3], "stderr": [1.2, 0.002, 1.3, 0.002, 1e-7]}
+    summary = {"models": [{"preload": "p", "parameter_names": ["omega1^2", "c"]}],
+               "selection": [{"preload": "p", "selected": "Jenkins", "ranking": [entry],
+                              "hysteretic_model": {"law": "jenkins", "units": units}}]}
+    rows = selected_model_rows(summary)
+    assert {r["quantity"]: r["unit"] for r in rows} == units

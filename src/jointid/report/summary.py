@@ -159,7 +159,7 @@ def model_rows(summary) -> list:
         for n, v, s_ in zip(names, vals, errs):
             if n == "omega1^2":
                 continue
-            v_txt, ci_txt, unit = _pm_ci(v, s_, parameter_unit(n, names, units, vals))
+            v_txt, ci_txt, unit = _pm_ci(v, s_, parameter_unit(n, names, units, vals) or str(law_units.get(n) or ""))
             note = coefficient_note(n, v, s_)
             rows.append({"preload": str(p), "model": model, "quantity": _label(n, units),
                          "value ± standard error": v_txt, "95 % interval": ci_txt, "unit": unit, "note": note})
@@ -201,6 +201,8 @@ def selected_model_rows(summary) -> list:
         dof = chosen.get("dof")
         dof = dof if _finite(dof) and float(dof) <= 0 else None
         at0 = " (at zero amplitude)" if any(n.startswith("omega1^2_") for n in names) else ""
+        hm = sel.get("hysteretic_model") if isinstance(sel.get("hysteretic_model"), dict) else {}
+        law_units = hm.get("units") if chosen.get("hysteretic_law") and isinstance(hm.get("units"), dict) else {}
         if "omega1^2" in names:
             w2, s2 = vals[names.index("omega1^2")], errs[names.index("omega1^2")]
             if _finite(w2) and w2 > 0:
@@ -214,7 +216,7 @@ def selected_model_rows(summary) -> list:
         for n, v, s_ in zip(names, vals, errs):
             if n == "omega1^2":
                 continue
-            v_txt, ci_txt, unit = _pm_ci(v, s_, parameter_unit(n, names, units, vals))
+            v_txt, ci_txt, unit = _pm_ci(v, s_, parameter_unit(n, names, units, vals) or str(law_units.get(n) or ""))
             if dof is not None:
                 v_txt, ci_txt = format_pm(v, s_, dof=0), "not available"
             rows.append({"preload": p, "model": name, "quantity": _label(n, units), "value ± standard error": v_txt,
