@@ -159,7 +159,7 @@ def model_rows(summary) -> list:
         for n, v, s_ in zip(names, vals, errs):
             if n == "omega1^2":
                 continue
-            v_txt, ci_txt, unit = _pm_ci(v, s_, parameter_unit(n, names, units, vals) or str(law_units.get(n) or ""))
+            v_txt, ci_txt, unit = _pm_ci(v, s_, parameter_unit(n, names, units, vals))
             note = coefficient_note(n, v, s_)
             rows.append({"preload": str(p), "model": model, "quantity": _label(n, units),
                          "value ± standard error": v_txt, "95 % interval": ci_txt, "unit": unit, "note": note})
