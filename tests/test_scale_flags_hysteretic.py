@@ -57,8 +57,15 @@ def _group(level, tmp_path_factory):
     t, _, a, err = integrate(K, C, sl.stiffness, sl.slip_displacement, np.full(ws.size, level), ws, steps=128,
                              periods=100, record=8, sub=1)
     assert err.max() < 1e-4
-    rng = np.random.default_rng(7)
-    folder = tmp_path_factory.mktemp("jenkins_group")
+    specs, outcomes = _noisy_group(tmp_path_factory.mktemp("jenkins_group"), t, a, ws, level, 7)
+    assert all(o.ok for o in outcomes)
+    return specs, outcomes
+
+
+def _noisy_group(folder, t, a, ws, level, seed):
+    """Dwells of one force level with 0.5 % noise on force and acceleration, written as a campaign and
+    identified: ``(specs, outcomes)``."""
+    rng = np.random.default_rng(seed)
     entries = []
     for i, w in enumerate(ws):
         F = level * np.cos(w * t[i])
@@ -67,13 +74,11 @@ def _group(level, tmp_path_factory):
         write_csv_record(folder / f"r{i:02d}.csv", t[i], {"force": F, "accel": A})
         entries.append({"file": f"r{i:02d}.csv", "frequency_hz": float(w / (2 * np.pi)), "force_level": level,
                         "preload": "p"})
-    write_campaign(folder, "jenkins group", entries)
+    write_campaign(folder, "group", entries)
     specs = load_campaign(folder).records
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        outcomes = process_all(specs, SETTINGS, None)
-    assert all(o.ok for o in outcomes)
-    return specs, outcomes
+        return specs, process_all(specs, SETTINGS, None)
 
 
 def _flags(outcomes):
@@ -227,20 +232,7 @@ def test_an_acceleration_in_g_on_a_coulomb_viscous_group_is_flagged(tmp_path):
     ws = 2 * np.pi * _peak_guess(name, level) * (1 + 0.05 * np.linspace(-1, 1, 13))
     t, a, err = integrate_smooth(force, sl, [level] * ws.size, list(ws))
     assert err.max() < 2e-4
-    rng = np.random.default_rng(11)
-    entries = []
-    for i, w in enumerate(ws):
-        F = level * np.cos(w * t[i])
-        F = F + 0.005 * np.std(F) * rng.standard_normal(F.size)
-        A = a[i] + 0.005 * np.std(a[i]) * rng.standard_normal(a[i].size)
-        write_csv_record(tmp_path / f"r{i:02d}.csv", t[i], {"force": F, "accel": A})
-        entries.append({"file": f"r{i:02d}.csv", "frequency_hz": float(w / (2 * np.pi)), "force_level": level,
-                        "preload": "p"})
-    write_campaign(tmp_path, "coulomb group", entries)
-    specs = load_campaign(tmp_path).records
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        outcomes = process_all(specs, SETTINGS, None)
+    specs, outcomes = _noisy_group(tmp_path, t, a, ws, level, 11)
     assert all(o.ok for o in outcomes) and _flags(outcomes) == {}
     smallest = int(np.argmin([_equivalent_damping(o)[0] * o.signals.omega * o.fit.q_max for o in outcomes]))
     bad = tmp_path / "bad"
