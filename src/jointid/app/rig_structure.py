@@ -38,7 +38,7 @@ from ..io.campaign import read_record
 from ..numerics.peaks import parabolic_peak, refine_peak
 from ..signal.harmonics import fit_harmonics
 from ..simulate.structure import JointElement, ModalModel, StructureModel
-from ..simulate.structure_hb import to_complex
+from ..simulate.structure_hb import to_complex, warm_sweep
 from .update_joint import MeasuredFRF
 
 __all__ = [
@@ -162,20 +162,12 @@ def sensor_acceleration(model: StructureModel, point, dof) -> complex:
 
 def predicted_sweep(model: StructureModel, frequencies_hz, force_amplitude, *, n_harmonics=9, n_time=None,
                     start=None) -> list:
-    """Steady states of a stepped sweep, in the given order, each started from its predecessors (secant);
-    the first from ``start`` (joint coefficients), else from the linear response."""
-    out, prev = [], []
-    for f in np.asarray(frequencies_hz, float):
-        guess = start
-        if len(prev) >= 2:
-            (f0, u0), (f1, u1) = prev[-2], prev[-1]
-            guess = u1 + (f - f1) / (f1 - f0) * (u1 - u0) if f1 != f0 else u1
-        elif prev:
-            guess = prev[-1][1]
-        p = model.solve(f, force_amplitude, n_harmonics, n_time=n_time, guess=guess)
-        prev.append((f, p.joint))
-        out.append(p)
-    return out
+    """Steady states of a stepped sweep, in the given order, each started from its predecessors (secant,
+    :func:`jointid.simulate.structure_hb.warm_sweep`); the first from ``start`` (joint coefficients), else
+    from the linear response."""
+    force = [0.0, 0.0, float(force_amplitude)]  # F sin(w t), as StructureModel.solve
+    return warm_sweep(lambda w, guess: model.engine.solve(w, force, n_harmonics, n_time=n_time, guess=guess),
+                      2 * np.pi * np.asarray(frequencies_hz, float), start=start)
 
 
 def predicted_peak(model: StructureModel, frequencies_hz, force_amplitude, dof, *, n_harmonics=9, n_time=None,

@@ -145,10 +145,10 @@ class HBCurve(JointMotionCurve):
     folds: tuple
 
 
-def warm_sweep(solve, frequencies, frequency=lambda p: p.omega) -> list:
-    """``solve(f, guess)`` at each frequency ``f`` in turn: the second point starts from the first,
-    every later one from the secant through the joint coefficients of the two before it (in the
-    harmonics both carry).
+def warm_sweep(solve, frequencies, frequency=lambda p: p.omega, start=None) -> list:
+    """``solve(f, guess)`` at each frequency ``f`` in turn: the first point starts from ``start``
+    (``None``: the solver's own start), the second from the first, every later one from the secant
+    through the joint coefficients of the two before it (in the harmonics both carry).
 
     ``frequency(point)`` gives a point's frequency in the units of ``frequencies`` (rad/s by
     default).  The sequential sweep of the condensed engine, the rig's reduced model and the
@@ -157,7 +157,7 @@ def warm_sweep(solve, frequencies, frequency=lambda p: p.omega) -> list:
     """
     out = []
     for f in np.asarray(frequencies, float):
-        guess = None
+        guess = None if out else start
         if len(out) >= 2:
             p0, p1 = out[-2], out[-1]
             f0, f1 = frequency(p0), frequency(p1)
