@@ -59,7 +59,7 @@ from ..simulate.structure import (
     StructureModel,
     structure_from_spec,
 )
-from ..simulate.structure_hb import to_complex
+from ..simulate.structure_hb import to_complex, warm_sweep
 from .structure_predict import located_peak
 
 __all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
@@ -172,26 +172,20 @@ class _Fitter:
         return _with_law(self.model, self.j, self.law(theta), zeta)
 
     def responses(self, theta, meas: MeasuredFRF):
-        """Model first harmonics at the measured points (each level in file order, continued)."""
+        """Model first harmonics at the measured points: per level, its dwells (runs of one frequency in
+        file order: the sensors of one dwell share one solve) swept in order, each started from its
+        predecessors (:func:`jointid.simulate.structure_hb.warm_sweep`)."""
         m = self.structure(theta)
         out = np.empty(meas.X.size, complex)
         for lv in meas.levels():
             idx = np.flatnonzero(meas.force_level == lv)
-            prev, pt = [], None
-            for i in idx:
-                w = 2 * np.pi * meas.frequency_hz[i]
-                if prev and w == prev[-1][0]:  # another DOF of the same dwell: solved already
-                    out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pt.modal)[1]
-                    continue
-                guess = None
-                if len(prev) >= 2:
-                    (w0, u0), (w1, u1) = prev[-2], prev[-1]
-                    guess = u1 + (w - w1) / (w1 - w0) * (u1 - u0) if w1 != w0 else u1
-                elif prev:
-                    guess = prev[-1][1]
-                pt = m.solve(meas.frequency_hz[i], lv, self.H, n_time=self.N, guess=guess)
-                prev.append((w, pt.joint))
-                out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pt.modal)[1]
+            f = meas.frequency_hz[idx]
+            new = np.r_[True, f[1:] != f[:-1]]  # the first point of each dwell
+            dwell = np.cumsum(new) - 1
+            pts = warm_sweep(lambda fh, guess: m.solve(fh, lv, self.H, n_time=self.N, guess=guess), f[new],
+                             frequency=lambda p: p.frequency_hz)
+            for i, k in zip(idx, dwell):
+                out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pts[k].modal)[1]
         return out
 
     def residual(self, theta, meas):
