@@ -217,11 +217,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="MODEL.toml: time-integrate the peaks of the N largest force levels (default: up to 3; 0: none)")
     p.add_argument("--quiet", action="store_true", help="no progress and no table on stdout")
 
-    p = sub.add_parser("update", help="fit a structure model's joint law to measured first harmonics "
-                       "(docs/formats.md)", epilog="example: jointid update lap_joint.toml measured.csv --out upd")
+    p = sub.add_parser("update", help="fit a structure model's joint law to measured first harmonics and/or "
+                       "backbones (docs/formats.md)",
+                       epilog="example: jointid update lap_joint.toml measured.csv backbone.csv --out upd")
     p.add_argument("model", type=Path, help="structure model file MODEL.toml")
-    p.add_argument("measured", type=Path, help="measured first harmonics, CSV (force_level, frequency_hz, dof, a1, "
-                   "b1, se)")
+    p.add_argument("measured", type=Path, nargs="+", help="measured files, CSV, each recognised by its header: "
+                   "first harmonics (force_level, frequency_hz, dof, a1, b1, se) or a backbone (dof, amplitude, "
+                   "frequency_hz, se_frequency_hz, damping_ratio, se_damping_ratio[, mode])")
     p.add_argument("--out", type=Path, required=True, help="output folder (results.json, report.txt, figures/)")
     p.add_argument("--joint", default=None, help="name of the joint element to update (default: the first)")
     p.add_argument("--parameters", default=None, metavar="P1,P2,...",
@@ -494,13 +496,13 @@ def _predict_structure(args) -> int:
 
 
 def _update(args) -> int:
-    from .app.update_joint import read_measured_frf, update_joint, write_update
+    from .app.update_joint import read_measured, update_joint, write_update
 
-    meas = read_measured_frf(args.measured)  # a bad file: one line, before any work
+    meas, bbs = read_measured(args.measured)  # a bad file: one line, before any work
     pars = None if args.parameters is None else [s.strip() for s in args.parameters.split(",") if s.strip()]
-    res = update_joint(args.model, meas, joint=args.joint, parameters=pars, n_harmonics=args.harmonics,
-                       heldout=not args.no_heldout)
-    write_update(res, args.out, inputs=(args.model.parent, args.measured.parent))
+    res = update_joint(args.model, ([meas] if meas is not None else []) + bbs, joint=args.joint, parameters=pars,
+                       n_harmonics=args.harmonics, heldout=not args.no_heldout)
+    write_update(res, args.out, inputs=(args.model.parent, *(m.parent for m in args.measured)))
     if not args.quiet:
         print(res.report())
         print(f"\nresults written to {args.out}")

@@ -61,8 +61,16 @@ from ..simulate.structure import (
 )
 from ..simulate.structure_hb import to_complex, warm_sweep
 from .structure_predict import located_peak
+from .update_backbone import (
+    MeasuredBackbone,
+    backbone_response,
+    check_backbone,
+    measured_kind,
+    read_measured_backbone,
+)
 
-__all__ = ["JointUpdate", "MeasuredFRF", "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
+__all__ = ["JointUpdate", "MeasuredBackbone", "MeasuredFRF", "read_measured", "read_measured_backbone",
+           "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
 
 _COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
 #: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
@@ -188,16 +196,29 @@ class _Fitter:
                 out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pts[k].modal)[1]
         return out
 
-    def residual(self, theta, meas):
-        try:
-            d = (self.responses(theta, meas) - meas.X) / meas.se
-        except (ConvergenceError, StructureError):  # no steady state, or a step outside the law's bounds
-            return np.full(2 * meas.X.size, 1e6)
-        return np.concatenate([d.real, d.imag])
+    def backbones(self, theta, bbs):
+        """Model ``(frequency [Hz], damping ratio)`` at the points of each measured backbone."""
+        m = self.structure(theta)
+        return [backbone_response(m, bb, self.H, self.N) for bb in bbs]
 
-    def fit(self, meas, theta0=None):
+    def residual(self, theta, meas, bbs=()):
+        """Weighted residuals: real and imaginary parts of the FRF points (``meas``, may be None), then per
+        backbone the frequencies and the damping ratios over their standard errors."""
+        n = (2 * meas.X.size if meas is not None else 0) + sum(2 * bb.n for bb in bbs)
+        parts = []
+        try:
+            if meas is not None:
+                d = (self.responses(theta, meas) - meas.X) / meas.se
+                parts += [d.real, d.imag]
+            for bb, (f, z) in zip(bbs, self.backbones(theta, bbs)):
+                parts += [(f - bb.frequency_hz) / bb.se_frequency_hz, (z - bb.damping_ratio) / bb.se_damping_ratio]
+        except (ConvergenceError, StructureError):  # no steady state, or a step outside the law's bounds
+            return np.full(n, 1e6)
+        return np.concatenate(parts)
+
+    def fit(self, meas, theta0=None, bbs=()):
         th0 = self.theta0 if theta0 is None else theta0
-        sol = scipy.optimize.least_squares(self.residual, th0, args=(meas,), method="lm", diff_step=1e-5,
+        sol = scipy.optimize.least_squares(self.residual, th0, args=(meas, tuple(bbs)), method="lm", diff_step=1e-5,
                                            x_scale="jac", xtol=1e-10, ftol=1e-10, max_nfev=200)
         return sol
 
@@ -224,6 +245,8 @@ class JointUpdate:
     nfev: int
     heldout: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    backbones: list = field(default_factory=list)  # per measured backbone: its points, measured and fitted
+    heldout_backbone: dict = field(default_factory=dict)
     fitted: dict = field(default_factory=dict)  # measured vs model first harmonics (for the figure), fitted model
 
     @property
@@ -245,18 +268,41 @@ class JointUpdate:
             "covariance_scaled_by_chi2_per_dof": self.covariance_scaled,
             "n_points": self.n_points, "n_harmonics": self.n_harmonics, "function_evaluations": self.nfev,
             "heldout": self.heldout, "warnings": self.warnings,
+            "n_backbone_points": sum(b["n_points"] for b in self.backbones), "backbones": self.backbones,
+            "heldout_backbone": self.heldout_backbone,
         }
 
     def report(self) -> str:
         L = [f"joint update: {self.joint} ({self.law}) in {self.model_path}",
-             (f"measured: {self.measured_path}, {self.n_points} first-harmonic points, harmonic balance H = "
-              f"{self.n_harmonics}"),
+             (f"measured: {self.measured_path}, {self.n_points} first-harmonic points"
+              + (f", {sum(b['n_points'] for b in self.backbones)} backbone points" if self.backbones else "")
+              + f", harmonic balance H = {self.n_harmonics}"),
              f"chi2/dof = {self.chi2:.4g} / {self.dof} = {self.chi2_per_dof:.3f}"
              + (" (covariance scaled by it)" if self.covariance_scaled else " (covariance not scaled: <= 1)"),
              "", f"{'parameter':<10} {'start':>10} {'estimate ± standard error':>28} {'95 % interval':>24}  unit"]
         for k in self.names:
             L.append(f"{k:<10} {self.start[k]:>10.6g} {format_pm(self.estimate[k], self.stderr[k]):>28} "
                      f"{format_ci(self.ci95[k], self.stderr[k]):>24}  {self.units.get(k, '')}")
+        for b in self.backbones:
+            L += ["", f"backbone {b['file']} ({b['n_points']} points, chi2 {b['chi2']:.4g}): amplitude at dof, "
+                  "frequency [Hz] and damping ratio [%], measured ± se and fitted",
+                  f"{'dof':>8} {'mode':>4} {'amplitude':>11} {'f measured':>22} {'f model':>11} "
+                  f"{'zeta measured %':>20} {'zeta model %':>12}"]
+            for p in b["points"]:
+                L.append(f"{p['dof']:>8} {p['mode']:>4} {p['amplitude']:>11.4e} "
+                         f"{format_pm(p['frequency_hz'], p['se_frequency_hz']):>22} {p['model_frequency_hz']:>11.6g} "
+                         f"{format_pm(100 * p['damping_ratio'], 100 * p['se_damping_ratio']):>20} "
+                         f"{100 * p['model_damping_ratio']:>12.5g}")
+        hb = self.heldout_backbone
+        if hb:
+            L += ["", f"backbone held out ({hb['how']}):"]
+            if hb.get("note"):
+                L.append(f"  {hb['note']}")
+            else:
+                L.append(f"  {hb['n_points']} points predicted: rms z frequency {hb['rms_z_frequency']:.3g}, "
+                         f"damping {hb['rms_z_damping']:.3g}; max |error| frequency "
+                         f"{hb['max_abs_frequency_error_pct']:.4g} %, damping ratio "
+                         f"{hb['max_abs_damping_error_pct']:.4g} %")
         if self.heldout:
             L += ["", "leave-one-level-out (fitted without the level, its response predicted):",
                   f"{'level':>8} {'peak f err %':>13} {'peak A err %':>13} {'rms A err %':>12}  note"]
@@ -285,9 +331,9 @@ def _measured_peak(f, a):
     return float(f[i] + df), float(np.polyval(c, df))
 
 
-def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time):
+def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time, bbs=()):
     keep = meas.force_level != level
-    sol = fitter.fit(meas.subset(keep), theta0=theta_all)
+    sol = fitter.fit(meas.subset(keep), theta0=theta_all, bbs=bbs)
     out = meas.subset(~keep)
     dof = out.dof[0]
     row = {"force_level": level, "dof": dof, "parameters": {k: float(v) for k, v in
@@ -322,16 +368,84 @@ def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time):
     return row
 
 
+def _backbone_points(bb, f, z):
+    return [{"line": int(ln), "dof": d, "mode": int(r), "amplitude": float(a), "frequency_hz": float(fm),
+             "se_frequency_hz": float(sf), "damping_ratio": float(zm), "se_damping_ratio": float(sz),
+             "model_frequency_hz": float(fp), "model_damping_ratio": float(zp)}
+            for ln, d, r, a, fm, sf, zm, sz, fp, zp in zip(bb.line, bb.dof, bb.mode, bb.amplitude, bb.frequency_hz,
+                                                             bb.se_frequency_hz, bb.damping_ratio,
+                                                             bb.se_damping_ratio, f, z)]
+
+
+def _heldout_backbone(fitter, meas, bbs, theta_all, n_par):
+    """The backbones predicted by a fit that has not seen them (FRF points only), or, without FRF points,
+    the upper half of each backbone's amplitudes predicted from the lower half."""
+    if meas is not None:
+        how, fit_bbs, test_bbs = "fitted to the FRF points only, the backbones predicted", (), list(bbs)
+    else:
+        how = "fitted to the lower half of each backbone's amplitudes, the upper half predicted"
+        lows = [bb.amplitude <= np.median(bb.amplitude) for bb in bbs]
+        fit_bbs = [bb.subset(lo) for bb, lo in zip(bbs, lows)]
+        test_bbs = [bb.subset(~lo) for bb, lo in zip(bbs, lows)]
+        fit_bbs = [b for b in fit_bbs if b.n]
+        test_bbs = [b for b in test_bbs if b.n]
+        if 2 * sum(b.n for b in fit_bbs) <= n_par or not test_bbs:
+            return {"how": how, "note": "too few points in the lower half to fit the parameters"}
+    out = {"how": how, "parameters": None, "note": ""}
+    try:
+        sol = fitter.fit(meas, theta0=theta_all, bbs=fit_bbs)
+        out["parameters"] = {k: float(v) for k, v in fitter._values(sol.x).items()}
+        pred = fitter.backbones(sol.x, test_bbs)
+    except (ConvergenceError, StructureError) as exc:
+        out["note"] = f"prediction failed: {exc}"
+        return out
+    zf = np.concatenate([(f - b.frequency_hz) / b.se_frequency_hz for b, (f, _) in zip(test_bbs, pred)])
+    zz = np.concatenate([(z - b.damping_ratio) / b.se_damping_ratio for b, (_, z) in zip(test_bbs, pred)])
+    ef = np.concatenate([100 * (f / b.frequency_hz - 1) for b, (f, _) in zip(test_bbs, pred)])
+    ez = np.concatenate([100 * (z / b.damping_ratio - 1) for b, (_, z) in zip(test_bbs, pred)])
+    out.update(n_points=int(zf.size), rms_z_frequency=float(np.sqrt(np.mean(zf ** 2))),
+               rms_z_damping=float(np.sqrt(np.mean(zz ** 2))), max_abs_frequency_error_pct=float(np.abs(ef).max()),
+               max_abs_damping_error_pct=float(np.abs(ez).max()),
+               points=[p for b, (f, z) in zip(test_bbs, pred) for p in _backbone_points(b, f, z)])
+    return out
+
+
+def read_measured(paths):
+    """``(MeasuredFRF or None, [MeasuredBackbone])`` from measured files, each recognised by its header
+    (first harmonics: several files are joined; backbones: one target each)."""
+    frfs, bbs = [], []
+    for p in paths:
+        if measured_kind(p) == "frf":
+            frfs.append(read_measured_frf(p))
+        else:
+            bbs.append(read_measured_backbone(p))
+    if not frfs:
+        return None, bbs
+    if len(frfs) == 1:
+        return frfs[0], bbs
+    return MeasuredFRF(", ".join(m.path for m in frfs), np.concatenate([m.force_level for m in frfs]),
+                       np.concatenate([m.frequency_hz for m in frfs]), sum((m.dof for m in frfs), ()),
+                       np.concatenate([m.X for m in frfs]), np.concatenate([m.se for m in frfs])), bbs
+
+
 def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmonics=9, n_time=None,
                  heldout=True) -> JointUpdate:
     """Fit a joint law's parameters of ``model_path`` to measured first harmonics (see the module doc)."""
     spec = read_structure_model(model_path)
     model, _ = structure_from_spec(spec)
-    meas = measured if isinstance(measured, MeasuredFRF) else read_measured_frf(measured)
+    items = measured if isinstance(measured, (list, tuple)) else [measured]
+    meas, bbs = read_measured([m for m in items if not isinstance(m, (MeasuredFRF, MeasuredBackbone))])
+    given = [m for m in items if isinstance(m, MeasuredFRF)]
+    if given:
+        if meas is not None or len(given) > 1:
+            raise ManifestError("update: give the first harmonics as one MeasuredFRF or as files, not both")
+        meas = given[0]
+    bbs = [m for m in items if isinstance(m, MeasuredBackbone)] + bbs
     j = _joint_index(model, joint, spec.path)
     units = {k: spec.joints[j].units.get(k, "") for k in model.joints[j].law.parameters}
     return update_structure_joint(model, meas, joint=joint, parameters=parameters, n_harmonics=n_harmonics,
-                                  n_time=n_time, heldout=heldout, source=str(spec.path), units=units)
+                                  n_time=n_time, heldout=heldout, source=str(spec.path), units=units,
+                                  backbones=bbs)
 
 
 def _joint_index(model, joint, source):
@@ -343,13 +457,20 @@ def _joint_index(model, joint, source):
     raise ManifestError(f"{source}: no joint named {joint!r} (joints: {', '.join(names_j)})")
 
 
-def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=None, parameters=None, n_harmonics=9,
-                           n_time=None, heldout=True, source="<structure model>", units=None) -> JointUpdate:
+def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, joint=None, parameters=None,
+                           n_harmonics=9, n_time=None, heldout=True, source="<structure model>", units=None,
+                           backbones=()) -> JointUpdate:
     """:func:`update_joint` on a structure model in memory (``source`` names it in messages and results;
-    ``units`` per parameter, default the law's own)."""
+    ``units`` per parameter, default the law's own; ``backbones`` measured backbones, with or without
+    first harmonics ``meas``)."""
     j = _joint_index(model, joint, source)
     names_j = [jt.name for jt in model.joints]
-    for d in sorted(set(meas.dof)):
+    bbs = tuple(backbones)
+    if meas is None and not bbs:
+        raise ManifestError(f"{source}: nothing measured to update to (no first harmonics, no backbone)")
+    for bb in bbs:
+        check_backbone(bb, model, source)
+    for d in sorted(set(meas.dof) if meas is not None else ()):
         if d not in model.modal.dof_names:
             raise ManifestError(f"{meas.path}: dof {d!r} is not a DOF of the structure model {source}")
     law = model.joints[j].law
@@ -361,23 +482,31 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=No
         raise ManifestError(f"{source}: joint {names_j[j]!r} ({law.name}) has no parameter(s) "
                             f"{', '.join(bad) or '(none given)'}; its parameters: {', '.join(avail)}")
     n_par = len(names)
-    dof = 2 * meas.X.size - n_par
+    n_frf = meas.X.size if meas is not None else 0
+    n_bb = sum(bb.n for bb in bbs)
+    paths = ([meas.path] if meas is not None else []) + [bb.path for bb in bbs]
+    dof = 2 * n_frf + 2 * n_bb - n_par
     if dof < 1:
-        raise IdentificationError(f"{meas.path}: {meas.X.size} points cannot determine {n_par} parameters")
+        raise IdentificationError(f"{', '.join(paths)}: {n_frf + n_bb} points cannot determine {n_par} parameters")
     fitter = _Fitter(model, j, names, n_harmonics, n_time)
     try:
-        r0 = fitter.residual(fitter.theta0, meas)
+        fitter.backbones(fitter.theta0, bbs)  # a point the model cannot reach: named by its file and line
+    except ConvergenceError as exc:
+        raise ManifestError(f"{exc} at the starting parameters of {source}") from None
+    try:
+        r0 = fitter.residual(fitter.theta0, meas, bbs)
     except Exception as exc:  # noqa: BLE001 - a law rejecting its own start is a bad model file
         raise ManifestError(f"{source}: cannot evaluate the model at its starting parameters ({exc})") from None
     if np.all(r0 == 1e6):
-        raise IdentificationError(f"{meas.path}: the harmonic balance does not converge at the starting parameters")
-    sol = fitter.fit(meas)
+        raise IdentificationError(f"{', '.join(paths)}: the harmonic balance does not converge at the starting "
+                                  "parameters")
+    sol = fitter.fit(meas, bbs=bbs)
     warn = []
     if not sol.success:
         warn.append(f"least squares stopped: {sol.message}")
     chi2 = float(np.sum(sol.fun ** 2))
     if np.any(sol.fun == 1e6):
-        raise IdentificationError(f"{meas.path}: the harmonic balance failed at the fitted parameters")
+        raise IdentificationError(f"{', '.join(paths)}: the harmonic balance failed at the fitted parameters")
     J = sol.jac
     try:
         cov = np.linalg.inv(J.T @ J)
@@ -401,13 +530,22 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF, *, joint=No
         corr = (cov / np.outer(d, d)).tolist()
     if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
-    res = JointUpdate(str(source), meas.path, names_j[j], law.name, names, {k: units.get(k, "") for k in names},
-                      fitter.start, est, se, ci, dict(zip(names, fitter.log)),
-                      chi2, dof, bool(scaled), corr, int(meas.X.size), int(n_harmonics), int(sol.nfev), warnings=warn)
-    res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas), "structure": fitter.structure(sol.x)}
-    if heldout and len(meas.levels()) >= 2:
+    res = JointUpdate(str(source), ", ".join(paths), names_j[j], law.name, names,
+                      {k: units.get(k, "") for k in names}, fitter.start, est, se, ci, dict(zip(names, fitter.log)),
+                      chi2, dof, bool(scaled), corr, int(n_frf), int(n_harmonics), int(sol.nfev), warnings=warn)
+    res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas) if meas is not None else None,
+                  "structure": fitter.structure(sol.x)}
+    fb = fitter.backbones(sol.x, bbs)
+    res.fitted["backbones"] = list(zip(bbs, fb))
+    for bb, (f, z) in zip(bbs, fb):
+        c2 = float(np.sum(((f - bb.frequency_hz) / bb.se_frequency_hz) ** 2
+                          + ((z - bb.damping_ratio) / bb.se_damping_ratio) ** 2))
+        res.backbones.append({"file": bb.path, "n_points": bb.n, "chi2": c2, "points": _backbone_points(bb, f, z)})
+    if heldout and meas is not None and len(meas.levels()) >= 2:
         for lv in meas.levels():
-            res.heldout.append(_heldout(fitter, meas, lv, sol.x, n_harmonics, n_time))
+            res.heldout.append(_heldout(fitter, meas, lv, sol.x, n_harmonics, n_time, bbs))
+    if heldout and bbs:
+        res.heldout_backbone = _heldout_backbone(fitter, meas, bbs, sol.x, n_par)
     return res
 
 
@@ -416,7 +554,7 @@ def write_update(result: JointUpdate, out, inputs=()) -> dict:
     from ..io.outputset import new_run_id, output_set
     from ..io.results import atomic_write, write_json
     from ..report.html import figure_to_png
-    from ..report.structure_plots import plot_update_fit
+    from ..report.structure_plots import plot_update_backbone, plot_update_fit
 
     run_id = new_run_id()
     summary = result.summary()
@@ -429,4 +567,8 @@ def write_update(result: JointUpdate, out, inputs=()) -> dict:
             fig = plot_update_fit(meas, mod, joint=result.joint, law=result.law,
                                   response_units=read_structure_model(result.model_path).response_units)
             paths["figure"] = atomic_write(tmp / "figures" / "update_fit.png", figure_to_png(fig, dpi=110))
+        if result.fitted.get("backbones"):
+            fig = plot_update_backbone(result.fitted["backbones"], joint=result.joint, law=result.law)
+            paths["backbone_figure"] = atomic_write(tmp / "figures" / "update_backbone.png",
+                                                    figure_to_png(fig, dpi=110))
     return paths

@@ -125,3 +125,41 @@ def plot_update_fit(measured, model, *, joint, law, response_units=None):
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def plot_update_backbone(backbones, *, joint, law):
+    """Measured backbones (± 1.96 standard errors) and the updated model's nonlinear mode at their points.
+
+    Parameters
+    ----------
+    backbones : sequence of (MeasuredBackbone, (frequency_hz, damping_ratio))
+        Each measured backbone (``path``, ``amplitude``, ``frequency_hz``, ``se_frequency_hz``,
+        ``damping_ratio``, ``se_damping_ratio``) with the model's values at its points.
+    joint, law : str
+        Named in the title.
+
+    Returns
+    -------
+    Figure
+    """
+    fig = ReportFigure(figsize=(7, 5.2))
+    axf, axz = fig.subplots(2, 1, sharex=True)
+    for bb, (f, z) in backbones:
+        o = np.argsort(bb.amplitude)
+        name = str(bb.path).replace("\\", "/").rsplit("/", 1)[-1]
+        line, = axf.plot(bb.amplitude[o], np.asarray(f)[o], "-", lw=1.1, label=f"{name}: fitted")
+        axf.errorbar(bb.amplitude[o], bb.frequency_hz[o], yerr=1.96 * bb.se_frequency_hz[o], fmt="o", ms=3,
+                     color=line.get_color())
+        axz.plot(bb.amplitude[o], 100 * np.asarray(z)[o], "-", lw=1.1, color=line.get_color())
+        axz.errorbar(bb.amplitude[o], 100 * bb.damping_ratio[o], yerr=196 * bb.se_damping_ratio[o], fmt="o", ms=3,
+                     color=line.get_color())
+    axf.set_xscale("log")
+    axf.set_ylabel("natural frequency [Hz]")
+    axz.set_ylabel("damping ratio [%]")
+    axz.set_xlabel("first-harmonic amplitude at the DOF")
+    axf.set_title(f"{joint}: updated {law}, backbone (dots: measured, 95 %)")
+    axf.legend(fontsize=8)
+    for ax in (axf, axz):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
