@@ -50,18 +50,6 @@ def _true_model(name):
                            law.n_sliders, law.phi_min_ratio)
 
 
-def _fine_peak(engine, Q, omegas, guesses, n_time):
-    """Band peak of ``engine`` at ``n_time`` samples (the reference), by the predictor's quartic."""
-    import jointid.app.predict_hysteretic as ph
-
-    old = ph._time_samples
-    ph._time_samples = lambda h, fine=False: n_time if fine else old(h)
-    try:
-        return _band_peak(engine, Q, omegas, guesses, 5)
-    finally:
-        ph._time_samples = old
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(CASES))
 def test_peak_standard_errors_are_calibrated(name):
@@ -88,7 +76,7 @@ def test_peak_standard_errors_are_calibrated(name):
             out = hysteretic_response(tm, Q, (28.0, 34.0), 5, uncertainty=False)  # what predict gives
             omegas, sol = out["peak_band"]
             base = (*out["peak"], sol)
-            ref = _fine_peak(tm.engine(), Q, omegas, sol, 1024)
+            ref = _band_peak(tm.engine(), Q, omegas, sol, 5, n_time=1024)  # the reference: 1024 samples
             J = np.zeros((2, len(idx)))
             for j, k in enumerate(idx):
                 vp, vm = tm.values.copy(), tm.values.copy()

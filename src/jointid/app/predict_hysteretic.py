@@ -199,12 +199,12 @@ def _continue(model, Q, n_harmonics, values=None):
     return engine, curve
 
 
-def _solve_at(engine, Q, omegas, guesses, n_harmonics):
-    """Steady states of ``engine`` at ``omegas`` at the fine time samples, each from its guess; ``None`` when
-    one fails or leaves the branch of its guess (``q_max`` off by 5 %)."""
+def _solve_at(engine, Q, omegas, guesses, n_harmonics, n_time=None):
+    """Steady states of ``engine`` at ``omegas`` at the fine time samples (or ``n_time``), each from its guess;
+    ``None`` when one fails or leaves the branch of its guess (``q_max`` off by 5 %)."""
     from ..signal.harmonics import series_max_abs
 
-    N = _time_samples(n_harmonics, fine=True)
+    N = _time_samples(n_harmonics, fine=True) if n_time is None else int(n_time)
     out, q = [], []
     for w, g in zip(omegas, guesses):
         try:
@@ -303,9 +303,10 @@ def _band_about(curve, i):
     return ws, [curve.points[lo + int(np.argmin(np.abs(w[lo:hi + 1] - x)))] for x in ws]
 
 
-def _band_peak(engine, Q, omegas, guesses, n_harmonics):
+def _band_peak(engine, Q, omegas, guesses, n_harmonics, n_time=None):
     """``(frequency_hz, q_max, solutions)``: the peak of a least-squares quartic in frequency through the steady
-    states at ``omegas`` (fine time samples), or ``None`` (a point failed, or the quartic has no maximum inside).
+    states at ``omegas`` (the fine time samples, or ``n_time`` per period), or ``None`` (a point failed, or the
+    quartic has no maximum inside).
 
     Why a fit across the band and not a parabola through the largest points: the sampled projection of a
     slider law's kinked force errs by ``O(N^-2)`` in ``q_max``, oscillating with the motion's phase against the
@@ -314,7 +315,7 @@ def _band_peak(engine, Q, omegas, guesses, n_harmonics):
     standard errors).  Across the band the oscillation averages out: the quartic's peak frequency agrees with
     the one of 2048 samples and with a time integration to a few 1e-6.
     """
-    got = _solve_at(engine, Q, omegas, guesses, n_harmonics)
+    got = _solve_at(engine, Q, omegas, guesses, n_harmonics, n_time)
     if got is None:
         return None
     sol, q = got
