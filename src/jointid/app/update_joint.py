@@ -298,7 +298,7 @@ class JointUpdate:
             L += ["", f"backbone held out ({hb['how']}):"]
             if hb.get("note"):
                 L.append(f"  {hb['note']}")
-            else:
+            if "n_points" in hb:
                 L.append(f"  {hb['n_points']} points predicted: rms z frequency {hb['rms_z_frequency']:.3g}, "
                          f"damping {hb['rms_z_damping']:.3g}; max |error| frequency "
                          f"{hb['max_abs_frequency_error_pct']:.4g} %, damping ratio "
@@ -377,7 +377,7 @@ def _backbone_points(bb, f, z):
                                                              bb.se_damping_ratio, f, z)]
 
 
-def _heldout_backbone(fitter, meas, bbs, theta_all, n_par):
+def _heldout_backbone(fitter, meas, bbs, n_par):
     """The backbones predicted by a fit that has not seen them (FRF points only), or, without FRF points,
     the upper half of each backbone's amplitudes predicted from the lower half."""
     if meas is not None:
@@ -392,13 +392,16 @@ def _heldout_backbone(fitter, meas, bbs, theta_all, n_par):
         if 2 * sum(b.n for b in fit_bbs) <= n_par or not test_bbs:
             return {"how": how, "note": "too few points in the lower half to fit the parameters"}
     out = {"how": how, "parameters": None, "note": ""}
-    try:
-        sol = fitter.fit(meas, theta0=theta_all, bbs=fit_bbs)
+    try:  # from the model file's start, not the full fit's estimate: what the points kept determine
+        sol = fitter.fit(meas, bbs=fit_bbs)
         out["parameters"] = {k: float(v) for k, v in fitter._values(sol.x).items()}
         pred = fitter.backbones(sol.x, test_bbs)
     except (ConvergenceError, StructureError) as exc:
         out["note"] = f"prediction failed: {exc}"
         return out
+    sv = np.linalg.svd(sol.jac, compute_uv=False)
+    if sv[-1] <= 1e-8 * sv[0]:
+        out["note"] = "the points kept do not determine every parameter (singular Jacobian): the prediction is weak"
     zf = np.concatenate([(f - b.frequency_hz) / b.se_frequency_hz for b, (f, _) in zip(test_bbs, pred)])
     zz = np.concatenate([(z - b.damping_ratio) / b.se_damping_ratio for b, (_, z) in zip(test_bbs, pred)])
     ef = np.concatenate([100 * (f / b.frequency_hz - 1) for b, (f, _) in zip(test_bbs, pred)])
@@ -545,7 +548,7 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
         for lv in meas.levels():
             res.heldout.append(_heldout(fitter, meas, lv, sol.x, n_harmonics, n_time, bbs))
     if heldout and bbs:
-        res.heldout_backbone = _heldout_backbone(fitter, meas, bbs, sol.x, n_par)
+        res.heldout_backbone = _heldout_backbone(fitter, meas, bbs, n_par)
     return res
 
 
