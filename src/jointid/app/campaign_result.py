@@ -124,6 +124,17 @@ class CampaignResult:
 
         return misfits(self.fit_checks)
 
+    @property
+    def force_level_unit(self):
+        """Unit of the force levels (``results.json`` key ``force_level_unit``): ``"N"`` (the force channel
+        with its known gain), ``"V"`` (the recorded excitation, the force gain identified), ``None`` when a
+        level is a label (text) or there are no groups."""
+        levels = [g.force_level for g in self.groups]
+        if not levels or not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                                 for v in levels):
+            return None
+        return "V" if str(getattr(self.settings, "force_gain", "known")) == "unknown" else "N"
+
     def group(self, preload, force_level) -> GroupResult:
         for g in self.groups:
             if g.preload == preload and g.force_level == force_level:
@@ -139,6 +150,7 @@ class CampaignResult:
             "settings": self.settings.summary(),
             "records": [_record_summary(r) for r in self.records],
             "groups": [g.summary() for g in self.groups],
+            "force_level_unit": self.force_level_unit,
             "damping_law": [
                 {"preload": p, **law.summary()} if law is not None else {"preload": p, "coefficients": None,
                                                                           "error": self.damping_law_errors.get(p)}

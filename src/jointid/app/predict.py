@@ -90,6 +90,7 @@ __all__ = [
     "PredictResult",
     "Prediction",
     "fitted_force_levels",
+    "force_level_unit",
     "force_scaling",
     "load_results",
     "measured_dwells",
@@ -157,7 +158,16 @@ def _identifications(results):
         rep = ident.get("reprediction")
         if isinstance(rep, dict) and isinstance(rep.get("groups"), list):
             merged["reprediction"]["groups"] += rep["groups"]
+    units = {e["identification"].get("force_level_unit") for e in pre}
+    merged["force_level_unit"] = units.pop() if len(units) == 1 else None  # the preloads disagree: none
     return merged
+
+
+def force_level_unit(results):
+    """The unit of the force levels identify wrote (``force_level_unit``: ``"N"``, ``"V"``), or ``None``
+    (labels, or a results.json written before the key existed)."""
+    u = results.get("force_level_unit") if isinstance(results, dict) else None
+    return u if isinstance(u, str) and u.strip() else None
 
 
 def parse_force_levels(text, source="--force-levels") -> tuple:
@@ -337,6 +347,7 @@ class Prediction:
     time_check: dict | None = None  # the curve point at the peak solved again by time integration (shooting)
     joint_law: str = "polynomial"  # the restoring force solved: polynomial terms, or the selected hysteretic law
     joint_law_summary: dict | None = None  # that law's parameters (a hysteretic law)
+    force_level_unit: str | None = None  # "N", "V" (identify's force_level_unit), None: levels without a unit
 
     def __post_init__(self):
         for name in ("frequency_hz", "q_max", "stable"):
@@ -359,6 +370,7 @@ class Prediction:
         return {
             "preload": self.preload,
             "force_level": self.force_level,
+            "force_level_unit": self.force_level_unit,
             "modal_force": self.modal_force,
             "extrapolated": self.extrapolated,
             "fitted_force_levels": list(self.fitted_levels),
@@ -389,7 +401,8 @@ class Prediction:
     def report(self) -> str:
         from ..rounding import format_estimate, format_value
 
-        head = f"preload {format_value(self.preload)}, F = {format_value(self.force_level)} (Q = {format_value(self.modal_force)})"
+        head = (f"preload {format_value(self.preload)}, F = {_with_unit(self.force_level, self.force_level_unit)} "
+                f"(Q = {format_value(self.modal_force)})")
         if self.joint_law != "polynomial":
             head += f" [{self.joint_law} joint law]"
         if self.error:
@@ -420,6 +433,12 @@ class Prediction:
         from ..report.predict_plots import plot_predictions
 
         return plot_predictions([self], ax=ax, **kwargs)
+
+
+def _with_unit(level, unit) -> str:
+    from ..rounding import format_value
+
+    return format_value(level) + (f" {unit}" if unit else "")
 
 
 def _levels_text(levels) -> str:
@@ -688,6 +707,7 @@ class PredictResult:
     settings: dict
     models: tuple = ()
     source_run_id: str | None = None
+    force_level_unit: str | None = None  # of the force levels, from the identification (None: not known)
 
     @property
     def failed(self) -> list:
@@ -707,6 +727,7 @@ class PredictResult:
             "source_run_id": self.source_run_id,
             "settings": dict(self.settings),
             "force_levels": list(self.force_levels),
+            "force_level_unit": self.force_level_unit,
             "force_scaling": [{"preload": p, **s} for p, s in self.scaling.items()],
             "models": list(self.models),
             "skipped_preloads": [{"preload": p, "reason": r} for p, r in self.skipped.items()],
@@ -718,7 +739,8 @@ class PredictResult:
     def lines(self) -> list:
         from ..rounding import format_value
 
-        out = [f"predictions from {self.source} at force levels {', '.join(format_value(f) for f in self.force_levels)}"]
+        out = [f"predictions from {self.source} at force levels {', '.join(format_value(f) for f in self.force_levels)}"
+               + (f" {self.force_level_unit}" if self.force_level_unit else "")]
         for p, s in self.scaling.items():
             spread = "" if s["spread"] is None else f", spread {100 * s['spread']:.2g} % over {s['n_levels']} levels"
             out.append(f"preload {format_value(p)}: modal force {format_value(s['modal_force_per_unit'])} per unit of "
@@ -786,6 +808,7 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
     from .predict_hysteretic import hysteretic_models
 
     hyst = hysteretic_models(results, source)  # preloads whose selection picked a hysteretic law: solved with it
+    unit = force_level_unit(results)
     preds, scaling = [], {}
     for entry in usable:
         p = entry.get("preload")
@@ -795,9 +818,7 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
             pred = predict_level(entry, F, scale=scaling[p]["modal_force_per_unit"], fitted_levels=fitted,
                                  frequency_range=frequency_range, n_harmonics=n_harmonics, uncertainty=uncertainty,
                                  hysteretic=hyst.get(p))
-            dwells = measured_dwells(results, p, F)
-            if dwells is not None:
-                pred = replace(pred, measured=dwells)
+            pred = replace(pred, force_level_unit=unit, measured=measured_dwells(results, p, F))
             preds.append(pred)
             if progress is not None:
                 progress(pred.report().splitlines()[0])
@@ -809,7 +830,8 @@ def predict_from_results(results, force_levels, *, frequency_range=None, n_harmo
                     "joint_law": hyst[e.get("preload")].law_name if e.get("preload") in hyst else "polynomial",
                     "joint_law_model": hyst[e.get("preload")].summary() if e.get("preload") in hyst else None}
                    for e in usable)
-    return PredictResult(source, levels, tuple(preds), scaling, skipped, settings, models, results.get("run_id"))
+    return PredictResult(source, levels, tuple(preds), scaling, skipped, settings, models, results.get("run_id"),
+                         unit)
 
 
 def write_predictions(result: PredictResult, out, inputs=()) -> dict:

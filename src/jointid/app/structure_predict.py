@@ -77,6 +77,7 @@ class LevelPrediction:
     def summary(self) -> dict:
         out = {
             "force_level": self.force_level,
+            "force_level_unit": "N",  # the amplitude of the model's force (N m on a rotation DOF)
             "peaks": self.peaks,
             "folds_hz": self.folds_hz,
             "n_points": self.n_points,
@@ -144,7 +145,7 @@ class StructurePrediction:
 
     def summary(self) -> dict:
         return {"kind": "structure prediction", "source": self.source, "model": self.model,
-                "settings": self.settings, "predictions": [lv.summary() for lv in self.levels],
+                "settings": self.settings, "force_level_unit": "N", "predictions": [lv.summary() for lv in self.levels],
                 "backbones": [b.summary() for b in self.backbones], "time_checks": self.time_checks}
 
     def unit(self, dof) -> str:
@@ -157,12 +158,12 @@ class StructurePrediction:
                f"{self.settings['n_time']} time samples"]
         for lv in self.levels:
             if lv.error:
-                out.append(f"F = {lv.force_level:g}: FAILED: {lv.error}")
+                out.append(f"F = {lv.force_level:g} N: FAILED: {lv.error}")
                 continue
             pk = "; ".join(f"{d} peak {p['peak_amplitude']:.4g} {self.unit(d)} at {p['peak_frequency_hz']:.6g} Hz"
                            for d, p in lv.peaks.items())
             folds = f"folds at {', '.join(f'{f:.6g}' for f in lv.folds_hz)} Hz" if lv.folds_hz else "no fold"
-            out.append(f"F = {lv.force_level:g}: {pk}; {folds}; {lv.n_points} points, "
+            out.append(f"F = {lv.force_level:g} N: {pk}; {folds}; {lv.n_points} points, "
                        f"{lv.newton_iterations_mean:.2g} Newton iterations per point, residual <= "
                        f"{lv.max_residual:.1e}, {1e3 * lv.seconds_per_point:.3g} ms per point")
         skipped = self.settings.get("backbone_modes_not_excited")
@@ -183,12 +184,12 @@ class StructurePrediction:
                 out.append(head + f"FAILED: {b.error}")
         if self.time_checks:
             done = [c for c in self.time_checks if not c["error"]]
-            txt = ", ".join(f"{c['relative_difference']:.1e} (F = {c['force_level']:g} at {c['frequency_hz']:.6g} Hz)"
+            txt = ", ".join(f"{c['relative_difference']:.1e} (F = {c['force_level']:g} N at {c['frequency_hz']:.6g} Hz)"
                             for c in done)
             bad = [c for c in self.time_checks if c["error"]]
             out.append(f"time integration from the peaks ({self.time_checks[0]['periods']} periods, DOP853): "
                        f"fundamental at the response DOFs differs from the harmonic balance by {txt or 'none'}"
-                       + "".join(f"; F = {c['force_level']:g}: FAILED: {c['error']}" for c in bad)
+                       + "".join(f"; F = {c['force_level']:g} N: FAILED: {c['error']}" for c in bad)
                        + f"; {sum(c['cost_s'] for c in self.time_checks):.3g} s")
         return out
 

@@ -16,6 +16,12 @@ from .identify_plots import new_axes
 __all__ = ["plot_predictions", "prediction_rows"]
 
 
+def _level(pred) -> str:
+    """``F = 14 N`` (the unit of the force levels when identify knew it)."""
+    unit = getattr(pred, "force_level_unit", None)
+    return f"F = {pred.force_level:g}" + (f" {unit}" if unit else "")
+
+
 def _runs(mask):
     """Start and stop indices of the runs of True in ``mask``."""
     m = np.concatenate([[False], np.asarray(mask, bool), [False]])
@@ -45,7 +51,7 @@ def plot_predictions(predictions, ax=None, *, title=None):
         if f.size == 0:
             continue
         stable = np.asarray(pred.stable, bool) if np.size(pred.stable) == f.size else np.ones(f.size, bool)
-        label = f"F = {pred.force_level:g}" + (" (extrapolated)" if pred.extrapolated else "")
+        label = _level(pred) + (" (extrapolated)" if pred.extrapolated else "")
         first = True
         for a, b in _runs(stable):
             ax.plot(f[a:b], q[a:b], color=col, lw=1.4, label=label if first else None)
@@ -59,7 +65,7 @@ def plot_predictions(predictions, ax=None, *, title=None):
             ax.plot([f[k]], [q[k]], marker="o", ms=3, mfc="none", color=col)
         if pred.measured is not None:
             ax.plot(pred.measured[0], pred.measured[1], ls="none", marker="o", ms=3.5, mfc="none", color=col,
-                    label=f"F = {pred.force_level:g} measured (fundamental)")
+                    label=f"{_level(pred)} measured (fundamental)")
         if pred.has_peak:
             xerr = yerr = None
             if np.isfinite(pred.peak_frequency_hz_stderr):
@@ -79,13 +85,15 @@ def plot_predictions(predictions, ax=None, *, title=None):
 
 
 def prediction_rows(predictions) -> list:
-    """One row per prediction: preload, force level, modal force, the model solved (polynomial terms or the
-    hysteretic joint law), peak with 95 % intervals, flags."""
+    """One row per prediction: preload, force level (its unit in the header when known), modal force, the model
+    solved (polynomial terms or the hysteretic joint law), peak with 95 % intervals, flags."""
     from ..rounding import format_ci, format_pm, format_value
 
     rows = []
     for p in predictions:
-        row = {"preload": p.preload, "force level": format_value(p.force_level),
+        unit = getattr(p, "force_level_unit", None)
+        row = {"preload": p.preload,
+               f"force level [{unit}]" if unit else "force level": format_value(p.force_level),
                "modal force": format_value(p.modal_force), "model": getattr(p, "joint_law", "polynomial")}
         if p.error:
             row.update({"peak frequency [Hz]": "failed", "peak q_max [m]": p.error[:80]})
