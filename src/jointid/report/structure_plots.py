@@ -153,7 +153,10 @@ def plot_update_backbone(backbones, *, joint, law):
         axz.plot(bb.amplitude[o], 100 * np.asarray(z)[o], "-", lw=1.1, color=line.get_color())
         axz.errorbar(bb.amplitude[o], 100 * bb.damping_ratio[o], yerr=196 * bb.se_damping_ratio[o], fmt="o", ms=3,
                      color=line.get_color())
+    from matplotlib.ticker import NullFormatter
+
     axf.set_xscale("log")
+    axz.xaxis.set_minor_formatter(NullFormatter())  # the minor labels of a short log axis overlap
     axf.set_ylabel("natural frequency [Hz]")
     axz.set_ylabel("damping ratio [%]")
     axz.set_xlabel("first-harmonic amplitude at the DOF")
