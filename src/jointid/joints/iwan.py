@@ -175,6 +175,10 @@ class Iwan4(JointLaw):
         """Periodic force and exact Jacobian of :attr:`sliders` (see :meth:`DiscreteIwan.aft`)."""
         return self.sliders.aft(u_t, v_t, velocity_jacobian=velocity_jacobian, jacobian=jacobian, state0=state0)
 
+    def aft_projected(self, u_t, P, E, *, state0=None):
+        """Projected force Jacobian of :attr:`sliders` (see :meth:`DiscreteIwan.aft_projected`)."""
+        return self.sliders.aft_projected(u_t, P, E, state0=state0)
+
 
 def _loss_integral(chi, top):
     """``int_0^top s^chi (1 - g(s)) ds`` (``g``: :func:`jenkins_harmonic_stiffness`)."""

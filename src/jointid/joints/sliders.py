@@ -10,6 +10,7 @@ of each monotone stretch, which the play operator sees exactly).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -228,6 +229,150 @@ def _slider_aft(u, k, phi, x0, jacobian, centre=False):
     return f, D.reshape(batch + (n, n))
 
 
+def _stretches(u, du):
+    """Monotone stretches of one sampled period ``u`` (n,) with steps ``du = diff(u)``, as
+    ``(start, end, direction)`` (inclusive samples; direction +1, -1, 0 for flat, None for the
+    lone sample 0, which steps from the state before the period): :func:`_knot_states`'s knots."""
+    out = [(0, 0, None)]
+    if u.size < 2:
+        return out
+    sg = np.sign(du)
+    a = 1
+    for e in (np.flatnonzero(sg[:-1] != sg[1:]) + 1).tolist() + [u.size - 1]:
+        if e >= a:
+            out.append((a, e, int(sg[a - 1])))
+        a = e + 1
+    return out
+
+
+def _fast_ok(u, du, x, phi):
+    """Whether :func:`_slider_aft_projected` may take its per-stretch path: finite motion and start,
+    and every non-zero step ``du`` of ``u`` larger than the rounding of ``u -+ phi`` (then a
+    slipping element moves at every sample of a monotone stretch, as in the sample loop, and the
+    rounded thresholds below are off by at most one sample)."""
+    if not (math.isfinite(float(u.sum())) and math.isfinite(float(x.sum()))):
+        return False
+    adu = np.abs(du)
+    small = float(np.min(adu, where=adu > 0, initial=np.inf))
+    return small > 8.0 * np.finfo(float).eps * (float(np.abs(u).max(initial=0.0)) + float(phi.max(initial=0.0)))
+
+
+_CP = [None, None]  # the last projection and its cumulative column sums
+
+
+def _cum_projection(P):
+    if _CP[0] is not P:
+        CP = np.zeros((P.shape[0], P.shape[1] + 1))
+        np.cumsum(P, axis=1, out=CP[:, 1:])
+        _CP[:] = [P, CP]
+    return _CP[1]
+
+
+def _onsets(us, S, phi, sgn):
+    """First slipping sample (index into the monotone stretch ``us``, ``len(us)``: never) of each
+    element from the states ``S`` at the stretch's start: the first ``t`` with
+    ``u_t - phi > S`` (increasing; decreasing ``u_t + phi < S``) as the sample loop rounds it,
+    found by ``searchsorted`` on ``S +- phi`` and corrected by one sample where rounding differs."""
+    L = us.size
+    if sgn > 0:
+        o = np.searchsorted(us, S + phi, side="right")
+        b = us[np.minimum(o, L - 1)] - phi
+        o = np.where((o < L) & ~(b > S), o + 1, o)  # rounded threshold one sample early
+        c = us[np.maximum(o - 1, 0)] - phi
+        return np.where((o > 0) & (c > S), o - 1, o)  # or one sample late
+    o = np.searchsorted(-us, -(S - phi), side="right")
+    b = us[np.minimum(o, L - 1)] + phi
+    o = np.where((o < L) & ~(b < S), o + 1, o)
+    c = us[np.maximum(o - 1, 0)] + phi
+    return np.where((o > 0) & (c < S), o - 1, o)
+
+
+def _slider_aft_projected(u, k, phi, x0, P, E, centre=False):
+    """Force samples and the projected Jacobian ``P (df/du) E`` of :func:`_slider_aft` for one
+    finite motion ``u`` (n,), without the ``n x m`` states or the dense ``n x n`` Jacobian;
+    ``None`` where :func:`_fast_ok` fails (the caller then takes :func:`_slider_aft`).
+
+    The sweeps go a monotone stretch at a time: on an increasing stretch from the states ``S``
+    at its start, element ``i`` holds ``max(S_i, u_t - phi_i)`` (decreasing:
+    ``min(S_i, u_t + phi_i)``), so it sticks up to its onset sample (:func:`_onsets`) and slips
+    from there to the stretch's end.  The first sweep keeps only each stretch's end state and
+    which elements moved (their latest slip is the stretch's last sample).  In the second sweep
+    the force at ``t`` is ``sigma sum_slipping F_i + sum_stuck k_i (u_t - S_i)`` (sums over onset
+    bins), a stuck element depends on the sample ``L_i`` of its latest slip before the stretch
+    and a slipping one on ``u_t`` alone (its terms cancel on the diagonal): ``df/du = diag(d) -
+    sum k_i e_t e_{L_i}^T`` over the stuck ones, ``d_t`` their stiffness, and ``P (df/du) E =
+    (P d) E - sum_i k_i (sum_{t stuck} P[:, t]) E[L_i]`` with the column sums from a cumulative
+    sum of ``P``.  Force and Jacobian agree with :func:`_slider_aft` to rounding.
+    """
+    n = u.size
+    du = np.diff(u)
+    if not _fast_ok(u, du, x0, phi):
+        return None
+    m = k.size
+    ktot = float(k.sum())
+    kphi = k * phi
+    x = np.array(x0, dtype=float)
+    last = np.full(m, -1, dtype=np.intp)
+    parts = _stretches(u, du)
+    for a, e, sgn in parts:  # first sweep: end states and latest slips only
+        ue = u[e]
+        if sgn is None:
+            xn = np.minimum(np.maximum(x, ue - phi), ue + phi)
+        elif sgn > 0:
+            xn = np.maximum(x, ue - phi)
+        elif sgn < 0:
+            xn = np.minimum(x, ue + phi)
+        else:
+            continue
+        last[xn != x] = e
+        x = xn
+    never = last < 0
+    f = np.empty(n)
+    d = np.empty(n)
+    CP = _cum_projection(P)
+    cols, rows, wts = [], [], []
+    for a, e, sgn in parts:  # second sweep: force, stuck stiffness and the stuck elements' columns
+        L = e + 1 - a
+        us = u[a : e + 1]
+        if sgn is None:  # one sample from the state after the period's last sample
+            xn = np.minimum(np.maximum(x, us[0] - phi), us[0] + phi)
+            mv = xn != x
+            o = np.where(mv, 0, 1)
+            d[a] = ktot - float(k[mv].sum())
+            f[a] = ktot * us[0] - float(xn @ k)
+        elif sgn == 0:  # flat: nothing moves
+            o = np.full(m, L, dtype=np.intp)
+            d[a : e + 1] = ktot
+            f[a : e + 1] = ktot * us - float(x @ k)
+            xn, mv = x, o < L
+        else:
+            o = _onsets(us, x, phi, sgn)
+            ks = np.bincount(o, weights=k, minlength=L + 1)
+            kst = ktot - np.cumsum(ks[:-1])  # stiffness of the elements still stuck at each sample
+            kst[kst < 0.0] = 0.0
+            slip = np.cumsum(np.bincount(o, weights=kphi, minlength=L + 1)[:-1])
+            kS = np.bincount(o, weights=k * x, minlength=L + 1)
+            stuck_kS = np.cumsum(kS[::-1])[::-1][1:]  # sum of k_i S_i over the elements with o_i > t
+            d[a : e + 1] = kst
+            f[a : e + 1] = sgn * slip + kst * us - stuck_kS
+            mv = o < L
+            xn = np.where(mv, us[-1] - sgn * phi, x)
+        st = (o > 0) & (last >= 0)
+        if st.any():
+            cols.append(CP[:, a + o[st]] - CP[:, a, None])
+            rows.append(last[st])
+            wts.append(k[st])
+        last[mv] = e
+        x = xn
+    J = (P * d) @ E
+    if cols:
+        C = np.concatenate(cols, axis=1) * np.concatenate(wts)
+        J -= C @ E[np.concatenate(rows)]
+    if centre and never.any():
+        kn = float(k[never].sum())
+        J -= np.multiply.outer(0.5 * kn * CP[:, n], E[int(np.argmax(u))] + E[int(np.argmin(u))])
+    return f, J
+
 @dataclass(frozen=True, eq=False)
 class DiscreteIwan(JointLaw):
     """``N`` Jenkins elements in parallel (a discrete Iwan model).
@@ -306,6 +451,14 @@ class DiscreteIwan(JointLaw):
         x = np.minimum(np.maximum(np.asarray(state, float), uu - phi), uu + phi)
         return self.total_stiffness * u - x @ self.stiffness, x
 
+    def _start(self, u, state0):
+        """Slider positions before the period (see :meth:`aft`'s ``state0``)."""
+        if isinstance(state0, str):
+            if state0 != "centre":
+                raise StructureError(f"{self.name}: state0 must be an array or 'centre', got {state0!r}")
+            return np.broadcast_to((0.5 * (u.max(axis=-1) + u.min(axis=-1)))[..., None], u.shape[:-1] + (self.n_elements,))
+        return self.initial_state(u.shape[:-1]) if state0 is None else np.asarray(state0, float)
+
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
         """Periodic force over one sampled period and its exact Jacobian.
 
@@ -335,16 +488,31 @@ class DiscreteIwan(JointLaw):
         """
         u = np.asarray(u_t, float)
         centre = isinstance(state0, str)
-        if centre and state0 != "centre":
-            raise StructureError(f"{self.name}: state0 must be an array or 'centre', got {state0!r}")
-        if centre:
-            x0 = np.broadcast_to((0.5 * (u.max(axis=-1) + u.min(axis=-1)))[..., None], u.shape[:-1] + (self.n_elements,))
-        else:
-            x0 = self.initial_state(u.shape[:-1]) if state0 is None else np.asarray(state0, float)
+        x0 = self._start(u, state0)
         f, D = _slider_aft(u, self.stiffness, self.slip_displacement, x0, jacobian, centre)
         if velocity_jacobian:
             return f, D, None if D is None else np.zeros_like(D)
         return f, D
+
+    def aft_projected(self, u_t, P, E, *, state0=None):
+        """Periodic force of one motion and its Jacobian projected on a harmonic basis.
+
+        The optional companion of :meth:`aft` that :class:`jointid.simulate.structure_hb.CondensedHB`
+        uses when a law offers it: ``u_t`` (n,) one period (no batch), ``P`` (c, n) and ``E``
+        (n, c) the projection and time basis; returns ``(f_t (n,), P @ df_du @ E (c, c))`` equal
+        to :meth:`aft`'s to rounding, without forming the dense ``n x n`` Jacobian (it has the
+        diagonal and a few knot columns: :func:`_slider_aft_projected`).  Non-finite motions,
+        steps below the rounding of ``u -+ phi`` and batches take :meth:`aft` and the product.
+        """
+        u = np.asarray(u_t, float)
+        x0 = self._start(u, state0)
+        centre = isinstance(state0, str)
+        phi = self.slip_displacement
+        out = _slider_aft_projected(u, self.stiffness, phi, x0, P, E, centre) if u.ndim == 1 and u.size else None
+        if out is not None:
+            return out
+        f, D = _slider_aft(u, self.stiffness, phi, x0, True, centre)
+        return f, P @ D @ E
 
     def backbone(self, a):
         """Initial-loading force at displacement ``a`` (odd): ``sum_i min(k_i |a|, F_i) sign(a)``."""
@@ -407,6 +575,10 @@ class Jenkins(JointLaw):
     def aft(self, u_t, v_t=None, *, velocity_jacobian=False, jacobian=True, state0=None):
         """As :meth:`DiscreteIwan.aft` with one element."""
         return self._elements.aft(u_t, v_t, velocity_jacobian=velocity_jacobian, jacobian=jacobian, state0=state0)
+
+    def aft_projected(self, u_t, P, E, *, state0=None):
+        """As :meth:`DiscreteIwan.aft_projected` with one element."""
+        return self._elements.aft_projected(u_t, P, E, state0=state0)
 
     def backbone(self, a):
         a = np.asarray(a, float)

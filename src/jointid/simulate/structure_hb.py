@@ -298,8 +298,10 @@ class CondensedHB:
         F = np.empty_like(U)
         J = np.zeros((nj, n, nj, n)) if jacobian else None
         Jw = np.zeros((nj, n)) if domega else None
-        for j, uj, vj, f, D, Dv in self._laws_on(U, omega, H, n_time, jacobian):
-            if jacobian:
+        for j, uj, vj, f, D, Dv, Jp in self._laws_on(U, omega, H, n_time, jacobian, projection=P):
+            if Jp is not None:  # the law projected its own Jacobian
+                J[j, :, j, :] = Jp - self.k_model[j] * (P @ E) if self.k_model[j] else Jp
+            elif jacobian:
                 Jj = P @ D @ E
                 if Dv is not None:
                     Jj = Jj + omega * (P @ Dv @ E @ Dm)
@@ -309,11 +311,17 @@ class CondensedHB:
             F[j] = (f - self.k_model[j] * uj) @ P.T
         return F, (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
 
-    def _laws_on(self, U, omega, H, n_time, jacobian):
-        """Each joint law on the samples of one period of ``U``: ``(j, u_j, v_j, f, D, Dv)`` with the
-        force samples ``f``, ``D = df/du - k_model`` and ``Dv = df/dv`` (rate-dependent laws; else
-        None), the derivatives only with ``jacobian``.  Shared by :meth:`aft` and
-        :meth:`hill_eigenvalues`."""
+    def _laws_on(self, U, omega, H, n_time, jacobian, projection=None):
+        """Each joint law on the samples of one period of ``U``: ``(j, u_j, v_j, f, D, Dv, Jp)`` with
+        the force samples ``f``, ``D = df/du - k_model`` and ``Dv = df/dv`` (rate-dependent laws;
+        else None), the derivatives only with ``jacobian``.  Shared by :meth:`aft` and
+        :meth:`hill_eigenvalues`.
+
+        With a ``projection`` ``P`` and a rate-independent law that offers the optional
+        ``aft_projected(u_t, P, E)`` (the slider laws: their time Jacobian is a diagonal and a
+        few columns), ``D`` is None and ``Jp = P (df/du) E`` comes from the law, without the
+        dense ``n_time x n_time`` Jacobian (and without ``k_model``); otherwise ``Jp`` is None.
+        """
         E, Dm, _ = aft_basis(H, int(n_time), "F")
         u = U @ E.T  # (n_j, N)
         v = None
@@ -321,7 +329,13 @@ class CondensedHB:
             Ud = U @ Dm.T  # d/dtau coefficients
             v = omega * (Ud @ E.T)
         for j, law in enumerate(self.laws):
-            Dv = D = None
+            Dv = D = Jp = None
+            if jacobian and projection is not None and not getattr(law, "rate_dependent", False) and hasattr(
+                law, "aft_projected"
+            ):
+                f, Jp = law.aft_projected(u[j], projection, E)
+                yield j, u[j], None, f, None, None, Jp
+                continue
             if getattr(law, "rate_dependent", False):
                 f, Du, Dv = law.aft(u[j], v[j], velocity_jacobian=True, jacobian=jacobian)
                 Dv = None if Dv is None or not jacobian else np.asarray(Dv)
@@ -330,7 +344,7 @@ class CondensedHB:
             if jacobian:
                 D = np.array(Du, float)
                 D[np.diag_indices_from(D)] -= self.k_model[j]
-            yield j, u[j], (None if v is None else v[j]), f, D, Dv
+            yield j, u[j], (None if v is None else v[j]), f, D, Dv, Jp
 
     def _force_vector(self, force, H):
         return resize_harmonics(np.ravel(force), H)
@@ -411,7 +425,7 @@ class CondensedHB:
         nm, nj = self.n_modes, self.n_joints
         Ju = np.zeros((nj * n, nj * n))
         Jv = np.zeros((nj * n, nj * n))
-        for j, _, _, _, D, Dv in self._laws_on(point.joint, w, H, N, True):
+        for j, _, _, _, D, Dv, _ in self._laws_on(point.joint, w, H, N, True):
             if Dv is not None:
                 Jv[j * n:(j + 1) * n, j * n:(j + 1) * n] = P @ Dv @ E
             Ju[j * n:(j + 1) * n, j * n:(j + 1) * n] = P @ D @ E
