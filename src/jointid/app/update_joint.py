@@ -198,6 +198,8 @@ class _Fitter:
 
     def backbones(self, theta, bbs):
         """Model ``(frequency [Hz], damping ratio)`` at the points of each measured backbone."""
+        if not bbs:
+            return []
         m = self.structure(theta)
         return [backbone_response(m, bb, self.H, self.N) for bb in bbs]
 
@@ -496,6 +498,8 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
         fitter.backbones(fitter.theta0, bbs)  # a point the model cannot reach: named by its file and line
     except ConvergenceError as exc:
         raise ManifestError(f"{exc} at the starting parameters of {source}") from None
+    except Exception as exc:  # noqa: BLE001 - as below
+        raise ManifestError(f"{source}: cannot evaluate the model at its starting parameters ({exc})") from None
     try:
         r0 = fitter.residual(fitter.theta0, meas, bbs)
     except Exception as exc:  # noqa: BLE001 - a law rejecting its own start is a bad model file
