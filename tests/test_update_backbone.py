@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 import two_mass_backbone as tb
+
 from jointid.app import update_backbone
 from jointid.app.update_joint import _with_law, read_measured, update_joint
 from jointid.cli import main
@@ -60,7 +60,10 @@ def test_ringdown_backbone_recovers_the_jenkins_joint(decay, model, tmp_path):
     assert {"line", "model_frequency_hz", "model_damping_ratio"} <= set(pts[0])
 
 
-def _frf_points(model_path, level=0.5, freqs=np.linspace(22.3, 23.3, 7), noise=0.005, seed=3):
+FRF_FREQS = np.linspace(22.3, 23.3, 7)
+
+
+def _frf_points(model_path, level=0.5, freqs=FRF_FREQS, noise=0.005, seed=3):
     """First harmonics of x2 at one level (harmonic balance of the true model at 21 harmonics, 0.5 % noise)."""
     m, _ = structure_from_spec(read_structure_model(model_path))
     mt = _with_law(m, 0, m.joints[0].law.replace(**tb.TRUE))

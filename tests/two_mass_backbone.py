@@ -72,7 +72,7 @@ def free_decay(kt=TRUE["kt"], Fs=TRUE["Fs"], x2_0=1e-2, duration=8.0, fs=2000.0,
 
     def acc(x1, x2, v1, v2, s):
         f = kt * (x1 - s)
-        f = Fs if f > Fs else (-Fs if f < -Fs else f)
+        f = min(max(f, -Fs), Fs)
         return ((-c11 * v1 - c12 * v2 - k11 * x1 - k12 * x2 - f) / m1, (-c21 * v1 - c22 * v2 - k21 * x1 - k22 * x2) / m2)
 
     def play(u, s):
@@ -82,7 +82,7 @@ def free_decay(kt=TRUE["kt"], Fs=TRUE["Fs"], x2_0=1e-2, duration=8.0, fs=2000.0,
     x1, x2, v1, v2 = 0.5 * x2_0, x2_0, 0.0, 0.0  # mode 1's shape x1 / x2 = 1/2 (without the joint)
     s = play(x1, 0.0)
     h = 1.0 / (fs * substeps)
-    n = int(round(duration * fs))
+    n = round(duration * fs)
     out = np.empty(n)
     for i in range(n):
         out[i] = acc(x1, x2, v1, v2, s)[1]

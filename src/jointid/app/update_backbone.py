@@ -28,11 +28,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConvergenceError, ManifestError, RecordFileNotFoundError, StructureError
+from ..errors import (
+    ConvergenceError,
+    ManifestError,
+    RecordFileNotFoundError,
+    StructureError,
+)
 from ..simulate.nlmodes import epmc_point
 from ..simulate.structure_hb import to_complex
 
-__all__ = ["MeasuredBackbone", "read_measured_backbone", "backbone_response", "measured_kind", "BACKBONE_COLUMNS"]
+__all__ = ["BACKBONE_COLUMNS", "MeasuredBackbone", "backbone_response", "measured_kind", "read_measured_backbone"]
 
 BACKBONE_COLUMNS = ("dof", "amplitude", "frequency_hz", "se_frequency_hz", "damping_ratio", "se_damping_ratio")
 FRF_COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
@@ -64,9 +69,11 @@ class MeasuredBackbone:
                                 self.damping_ratio[m], self.se_damping_ratio[m], self.line[m])
 
 
-def _rows(p):
+def read_rows(p, what="measured file"):
+    """``(kept, rows)``: the file's non-blank, non-comment lines as ``(line number, text)`` and the CSV rows
+    under its header; :class:`ManifestError` when it is not readable CSV."""
     if not p.is_file():
-        raise RecordFileNotFoundError(f"{p}: measured file not found")
+        raise RecordFileNotFoundError(f"{p}: {what} not found")
     try:
         with open(p, newline="", encoding="utf-8") as fh:
             kept = [(n, line) for n, line in enumerate(fh, start=1)
@@ -80,7 +87,7 @@ def _rows(p):
 def measured_kind(path) -> str:
     """``"frf"`` or ``"backbone"`` from a measured file's header columns; otherwise :class:`ManifestError`."""
     p = Path(path)
-    kept, _ = _rows(p)
+    kept, _ = read_rows(p)
     if not kept:
         raise ManifestError(f"{p}: no header line (a measured file needs the columns of first harmonics "
                             f"{', '.join(FRF_COLUMNS)} or of a backbone {', '.join(BACKBONE_COLUMNS)})")
@@ -96,7 +103,7 @@ def measured_kind(path) -> str:
 def read_measured_backbone(path) -> MeasuredBackbone:
     """Read a BACKBONE.csv; bad input -> :class:`ManifestError` naming the file, line and column."""
     p = Path(path)
-    kept, rows = _rows(p)
+    kept, rows = read_rows(p, "measured backbone file")
     if not rows:
         raise ManifestError(f"{p}: no data rows")
     missing = [c for c in BACKBONE_COLUMNS if c not in rows[0]]

@@ -35,7 +35,6 @@ the prediction and would blame it for the dwell spacing.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,7 +46,6 @@ from ..errors import (
     ConvergenceError,
     IdentificationError,
     ManifestError,
-    RecordFileNotFoundError,
     StructureError,
 )
 from ..io.structure_model import read_structure_model
@@ -67,6 +65,7 @@ from .update_backbone import (
     check_backbone,
     measured_kind,
     read_measured_backbone,
+    read_rows,
 )
 
 __all__ = ["JointUpdate", "MeasuredBackbone", "MeasuredFRF", "read_measured", "read_measured_backbone",
@@ -100,15 +99,7 @@ class MeasuredFRF:
 def read_measured_frf(path) -> MeasuredFRF:
     """Read a MEASURED.csv; bad input -> :class:`ManifestError` naming the file, row and column."""
     p = Path(path)
-    if not p.is_file():
-        raise RecordFileNotFoundError(f"{p}: measured first-harmonic file not found")
-    try:
-        with open(p, newline="", encoding="utf-8") as fh:
-            kept = [(n, line) for n, line in enumerate(fh, start=1)
-                    if line.strip() and not line.lstrip().startswith("#")]
-        rows = list(csv.DictReader(line for _, line in kept))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise ManifestError(f"{p}: cannot read as CSV ({exc})") from None
+    kept, rows = read_rows(p, "measured first-harmonic file")
     if not rows:
         raise ManifestError(f"{p}: no data rows")
     missing = [c for c in _COLUMNS if c not in rows[0]]
@@ -190,7 +181,7 @@ class _Fitter:
             f = meas.frequency_hz[idx]
             new = np.r_[True, f[1:] != f[:-1]]  # the first point of each dwell
             dwell = np.cumsum(new) - 1
-            pts = warm_sweep(lambda fh, guess: m.solve(fh, lv, self.H, n_time=self.N, guess=guess), f[new],
+            pts = warm_sweep(lambda fh, guess, lv=lv: m.solve(fh, lv, self.H, n_time=self.N, guess=guess), f[new],
                              frequency=lambda p: p.frequency_hz)
             for i, k in zip(idx, dwell):
                 out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pts[k].modal)[1]
@@ -286,10 +277,10 @@ class JointUpdate:
             L.append(f"{k:<10} {self.start[k]:>10.6g} {format_pm(self.estimate[k], self.stderr[k]):>28} "
                      f"{format_ci(self.ci95[k], self.stderr[k]):>24}  {self.units.get(k, '')}")
         for b in self.backbones:
-            L += ["", f"backbone {b['file']} ({b['n_points']} points, chi2 {b['chi2']:.4g}): amplitude at dof, "
-                  "frequency [Hz] and damping ratio [%], measured ± se and fitted",
-                  f"{'dof':>8} {'mode':>4} {'amplitude':>11} {'f measured':>22} {'f model':>11} "
-                  f"{'zeta measured %':>20} {'zeta model %':>12}"]
+            L += ["", (f"backbone {b['file']} ({b['n_points']} points, chi2 {b['chi2']:.4g}): amplitude at dof, "
+                       "frequency [Hz] and damping ratio [%], measured ± se and fitted"),
+                  (f"{'dof':>8} {'mode':>4} {'amplitude':>11} {'f measured':>22} {'f model':>11} "
+                   f"{'zeta measured %':>20} {'zeta model %':>12}")]
             for p in b["points"]:
                 L.append(f"{p['dof']:>8} {p['mode']:>4} {p['amplitude']:>11.4e} "
                          f"{format_pm(p['frequency_hz'], p['se_frequency_hz']):>22} {p['model_frequency_hz']:>11.6g} "

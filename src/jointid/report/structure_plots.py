@@ -16,7 +16,7 @@ import numpy as np
 
 from .figure_meta import ReportFigure
 
-__all__ = ["plot_structure_frf", "plot_backbones", "plot_update_fit"]
+__all__ = ["plot_backbones", "plot_structure_frf", "plot_update_backbone", "plot_update_fit"]
 
 
 def plot_structure_frf(prediction):
