@@ -175,9 +175,9 @@ class Iwan4(JointLaw):
         """Periodic force and exact Jacobian of :attr:`sliders` (see :meth:`DiscreteIwan.aft`)."""
         return self.sliders.aft(u_t, v_t, velocity_jacobian=velocity_jacobian, jacobian=jacobian, state0=state0)
 
-    def aft_projected(self, u_t, P, E, *, state0=None):
+    def aft_projected(self, u_t, P, E, *, state0=None, lazy=False):
         """Projected force Jacobian of :attr:`sliders` (see :meth:`DiscreteIwan.aft_projected`)."""
-        return self.sliders.aft_projected(u_t, P, E, state0=state0)
+        return self.sliders.aft_projected(u_t, P, E, state0=state0, lazy=lazy)
 
 
 def _loss_integral(chi, top):

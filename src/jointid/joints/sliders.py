@@ -250,13 +250,15 @@ def _fast_ok(u, du, x, phi):
     and every non-zero step ``du`` of ``u`` larger than the rounding of ``u -+ phi`` (then a
     slipping element moves at every sample of a monotone stretch, as in the sample loop, and the
     rounded thresholds below are off by at most one sample)."""
-    if not (math.isfinite(float(u.sum())) and math.isfinite(float(x.sum()))):
-        return False
     adu = np.abs(du)
+    hi = float(adu.max(initial=0.0))
+    if not (math.isfinite(hi) and math.isfinite(float(u[0])) and math.isfinite(float(x.sum()))):
+        return False  # (a non-finite sample makes a non-finite step)
     small = float(np.min(adu, where=adu > 0, initial=np.inf))
-    return small > 8.0 * np.finfo(float).eps * (float(np.abs(u).max(initial=0.0)) + float(phi.max(initial=0.0)))
+    return small > _EPS8 * (abs(float(u[0])) + hi * u.size + float(phi.max()))
 
 
+_EPS8 = 8.0 * float(np.finfo(float).eps)
 _CP = [None, None]  # the last projection and its cumulative column sums
 
 
@@ -276,18 +278,17 @@ def _onsets(us, S, phi, sgn):
     L = us.size
     if sgn > 0:
         o = np.searchsorted(us, S + phi, side="right")
-        b = us[np.minimum(o, L - 1)] - phi
-        o = np.where((o < L) & ~(b > S), o + 1, o)  # rounded threshold one sample early
-        c = us[np.maximum(o - 1, 0)] - phi
-        return np.where((o > 0) & (c > S), o - 1, o)  # or one sample late
-    o = np.searchsorted(-us, -(S - phi), side="right")
-    b = us[np.minimum(o, L - 1)] + phi
-    o = np.where((o < L) & ~(b < S), o + 1, o)
-    c = us[np.maximum(o - 1, 0)] + phi
-    return np.where((o > 0) & (c < S), o - 1, o)
+        at = us.take(np.minimum(o, L - 1)) - phi > S  # slipping at o
+        before = us.take(np.maximum(o - 1, 0)) - phi > S  # slipping one sample earlier
+    else:
+        o = np.searchsorted(-us, phi - S, side="right")
+        at = us.take(np.minimum(o, L - 1)) + phi < S
+        before = us.take(np.maximum(o - 1, 0)) + phi < S
+    # the rounded threshold is at most one sample early (not slipping at o) or late (slipping at o - 1)
+    return o + ((o < L) & ~at) - ((o > 0) & before)
 
 
-def _slider_aft_projected(u, k, phi, x0, P, E, centre=False):
+def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
     """Force samples and the projected Jacobian ``P (df/du) E`` of :func:`_slider_aft` for one
     finite motion ``u`` (n,), without the ``n x m`` states or the dense ``n x n`` Jacobian;
     ``None`` where :func:`_fast_ok` fails (the caller then takes :func:`_slider_aft`).
@@ -302,7 +303,8 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False):
     and a slipping one on ``u_t`` alone (its terms cancel on the diagonal): ``df/du = diag(d) -
     sum k_i e_t e_{L_i}^T`` over the stuck ones, ``d_t`` their stiffness, and ``P (df/du) E =
     (P d) E - sum_i k_i (sum_{t stuck} P[:, t]) E[L_i]`` with the column sums from a cumulative
-    sum of ``P``.  Force and Jacobian agree with :func:`_slider_aft` to rounding.
+    sum of ``P``.  Force and Jacobian agree with :func:`_slider_aft` to rounding.  With ``lazy``
+    the Jacobian is returned as a function that projects it when called.
     """
     n = u.size
     du = np.diff(u)
@@ -330,7 +332,7 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False):
     f = np.empty(n)
     d = np.empty(n)
     CP = _cum_projection(P)
-    cols, rows, wts = [], [], []
+    starts, ons, rows, wts = [], [], [], []
     for a, e, sgn in parts:  # second sweep: force, stuck stiffness and the stuck elements' columns
         L = e + 1 - a
         us = u[a : e + 1]
@@ -347,31 +349,38 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False):
             xn, mv = x, o < L
         else:
             o = _onsets(us, x, phi, sgn)
-            ks = np.bincount(o, weights=k, minlength=L + 1)
-            kst = ktot - np.cumsum(ks[:-1])  # stiffness of the elements still stuck at each sample
-            kst[kst < 0.0] = 0.0
-            slip = np.cumsum(np.bincount(o, weights=kphi, minlength=L + 1)[:-1])
-            kS = np.bincount(o, weights=k * x, minlength=L + 1)
-            stuck_kS = np.cumsum(kS[::-1])[::-1][1:]  # sum of k_i S_i over the elements with o_i > t
+            # per onset bin: k, k S, k phi; suffix sums over o > t (the stuck), prefix over o <= t (slipping)
+            bins = np.empty((3, L + 1))
+            bins[0] = np.bincount(o, weights=k, minlength=L + 1)
+            bins[1] = np.bincount(o, weights=k * x, minlength=L + 1)
+            bins[2] = np.bincount(o, weights=kphi, minlength=L + 1)
+            stuck = np.cumsum(bins[:2, :0:-1], axis=1)[:, ::-1]  # (2, L): k and k S of the elements stuck at t
+            kst = stuck[0]
             d[a : e + 1] = kst
-            f[a : e + 1] = sgn * slip + kst * us - stuck_kS
+            f[a : e + 1] = sgn * np.cumsum(bins[2, :-1]) + kst * us - stuck[1]
             mv = o < L
             xn = np.where(mv, us[-1] - sgn * phi, x)
-        st = (o > 0) & (last >= 0)
-        if st.any():
-            cols.append(CP[:, a + o[st]] - CP[:, a, None])
-            rows.append(last[st])
-            wts.append(k[st])
+        st = np.flatnonzero((o > 0) & (last >= 0))  # stuck at the stretch's first sample, with a latest slip
+        ons.append(a + o[st])
+        starts.append((a, st.size))
+        rows.append(last[st])
+        wts.append(k[st])
         last[mv] = e
         x = xn
-    J = (P * d) @ E
-    if cols:
-        C = np.concatenate(cols, axis=1) * np.concatenate(wts)
-        J -= C @ E[np.concatenate(rows)]
-    if centre and never.any():
-        kn = float(k[never].sum())
-        J -= np.multiply.outer(0.5 * kn * CP[:, n], E[int(np.argmax(u))] + E[int(np.argmin(u))])
-    return f, J
+
+    def project():
+        J = (P * d) @ E
+        on = np.concatenate(ons)
+        if on.size:
+            a0, cnt = zip(*starts)
+            C = (CP[:, on] - CP[:, np.repeat(a0, cnt)]) * np.concatenate(wts)
+            J -= C @ E[np.concatenate(rows)]
+        if centre and never.any():
+            kn = float(k[never].sum())
+            J -= np.multiply.outer(0.5 * kn * CP[:, n], E[int(np.argmax(u))] + E[int(np.argmin(u))])
+        return J
+
+    return f, (project if lazy else project())
 
 @dataclass(frozen=True, eq=False)
 class DiscreteIwan(JointLaw):
@@ -494,7 +503,7 @@ class DiscreteIwan(JointLaw):
             return f, D, None if D is None else np.zeros_like(D)
         return f, D
 
-    def aft_projected(self, u_t, P, E, *, state0=None):
+    def aft_projected(self, u_t, P, E, *, state0=None, lazy=False):
         """Periodic force of one motion and its Jacobian projected on a harmonic basis.
 
         The optional companion of :meth:`aft` that :class:`jointid.simulate.structure_hb.CondensedHB`
@@ -503,16 +512,17 @@ class DiscreteIwan(JointLaw):
         to :meth:`aft`'s to rounding, without forming the dense ``n x n`` Jacobian (it has the
         diagonal and a few knot columns: :func:`_slider_aft_projected`).  Non-finite motions,
         steps below the rounding of ``u -+ phi`` and batches take :meth:`aft` and the product.
+        ``lazy``: the Jacobian comes as a function that returns it (for a caller that may not need it).
         """
         u = np.asarray(u_t, float)
         x0 = self._start(u, state0)
         centre = isinstance(state0, str)
         phi = self.slip_displacement
-        out = _slider_aft_projected(u, self.stiffness, phi, x0, P, E, centre) if u.ndim == 1 and u.size else None
+        out = _slider_aft_projected(u, self.stiffness, phi, x0, P, E, centre, lazy) if u.ndim == 1 and u.size else None
         if out is not None:
             return out
         f, D = _slider_aft(u, self.stiffness, phi, x0, True, centre)
-        return f, P @ D @ E
+        return f, ((lambda: P @ D @ E) if lazy else P @ D @ E)
 
     def backbone(self, a):
         """Initial-loading force at displacement ``a`` (odd): ``sum_i min(k_i |a|, F_i) sign(a)``."""
@@ -576,9 +586,9 @@ class Jenkins(JointLaw):
         """As :meth:`DiscreteIwan.aft` with one element."""
         return self._elements.aft(u_t, v_t, velocity_jacobian=velocity_jacobian, jacobian=jacobian, state0=state0)
 
-    def aft_projected(self, u_t, P, E, *, state0=None):
+    def aft_projected(self, u_t, P, E, *, state0=None, lazy=False):
         """As :meth:`DiscreteIwan.aft_projected` with one element."""
-        return self._elements.aft_projected(u_t, P, E, state0=state0)
+        return self._elements.aft_projected(u_t, P, E, state0=state0, lazy=lazy)
 
     def backbone(self, a):
         a = np.asarray(a, float)

@@ -171,7 +171,16 @@ def warm_sweep(solve, frequencies, frequency=lambda p: p.omega, start=None) -> l
 
 
 class _Evaluation(dict):
-    pass
+    """One evaluation of :meth:`CondensedHB.evaluate` (``R``, ``F``, ... and, when asked, ``J``, ``Jw``)."""
+
+    _complete = None
+
+    def complete(self):
+        """Add the derivatives that ``evaluate(..., lazy=True)`` deferred; returns the dict."""
+        if self._complete is not None:
+            fn, self._complete = self._complete, None
+            fn()
+        return self
 
 
 class CondensedHB:
@@ -267,13 +276,12 @@ class CondensedHB:
         n = n_coefficients(H)
         G = np.zeros((nj, n, nj, n))
         G[:, 0, :, 0] = Gk[0].real
-        for kk in range(1, H + 1):
-            Gr, Gi = Gk[kk].real, Gk[kk].imag
-            a, b = 2 * kk - 1, 2 * kk
-            G[:, a, :, a] = Gr
-            G[:, a, :, b] = Gi
-            G[:, b, :, a] = -Gi
-            G[:, b, :, b] = Gr
+        a = np.arange(1, 2 * H, 2)  # cos rows of harmonics 1..H; sin rows a + 1
+        Gr, Gi = Gk[1:].real, Gk[1:].imag  # (H, nj, nj): the order of the mixed index G[:, a, :, a]
+        G[:, a, :, a] = Gr
+        G[:, a, :, a + 1] = Gi
+        G[:, a + 1, :, a] = -Gi
+        G[:, a + 1, :, a + 1] = Gr
         return G.reshape(nj * n, nj * n)
 
     def condensed(self, omega, H):
@@ -287,20 +295,23 @@ class CondensedHB:
         return to_real(np.einsum("jm,km,m->jk", self.joint_shapes, Hm, self.force_shape) * Xf).reshape(-1)
 
     # --- nonlinear pieces -------------------------------------------------------------
-    def aft(self, U, omega, H, n_time, jacobian=True, domega=False):
+    def aft(self, U, omega, H, n_time, jacobian=True, domega=False, lazy=False):
         """Nonlinear joint force coefficients ``F (n_j, n)`` of joint motions ``U (n_j, n)``.
 
         With ``jacobian``: also the block-diagonal ``dF/dU`` (n_j n, n_j n); with ``domega``
-        also ``dF/domega`` (n_j n,) (non-zero only for rate-dependent laws).
+        also ``dF/domega`` (n_j n,) (non-zero only for rate-dependent laws).  With ``lazy``:
+        ``(F, finish)``, ``finish()`` returning the two derivatives (the projections that laws
+        offering ``aft_projected`` defer are done only then).
         """
         E, Dm, P = aft_basis(H, int(n_time), "F")
         nj, n = U.shape
         F = np.empty_like(U)
         J = np.zeros((nj, n, nj, n)) if jacobian else None
         Jw = np.zeros((nj, n)) if domega else None
-        for j, uj, vj, f, D, Dv, Jp in self._laws_on(U, omega, H, n_time, jacobian, projection=P):
-            if Jp is not None:  # the law projected its own Jacobian
-                J[j, :, j, :] = Jp - self.k_model[j] * (P @ E) if self.k_model[j] else Jp
+        deferred = []
+        for j, uj, vj, f, D, Dv, Jp in self._laws_on(U, omega, H, n_time, jacobian, projection=P, lazy=lazy):
+            if Jp is not None:  # the law projects its own Jacobian (now or when called)
+                deferred.append((j, Jp))
             elif jacobian:
                 Jj = P @ D @ E
                 if Dv is not None:
@@ -309,9 +320,16 @@ class CondensedHB:
                 if domega and Dv is not None:
                     Jw[j] = P @ (Dv @ (vj / omega))
             F[j] = (f - self.k_model[j] * uj) @ P.T
-        return F, (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
 
-    def _laws_on(self, U, omega, H, n_time, jacobian, projection=None):
+        def finish():
+            for j, Jp in deferred:
+                Jj = Jp() if callable(Jp) else Jp
+                J[j, :, j, :] = Jj - self.k_model[j] * (P @ E) if self.k_model[j] else Jj
+            return (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
+
+        return (F, finish) if lazy else (F, *finish())
+
+    def _laws_on(self, U, omega, H, n_time, jacobian, projection=None, lazy=False):
         """Each joint law on the samples of one period of ``U``: ``(j, u_j, v_j, f, D, Dv, Jp)`` with
         the force samples ``f``, ``D = df/du - k_model`` and ``Dv = df/dv`` (rate-dependent laws;
         else None), the derivatives only with ``jacobian``.  Shared by :meth:`aft` and
@@ -320,7 +338,8 @@ class CondensedHB:
         With a ``projection`` ``P`` and a rate-independent law that offers the optional
         ``aft_projected(u_t, P, E)`` (the slider laws: their time Jacobian is a diagonal and a
         few columns), ``D`` is None and ``Jp = P (df/du) E`` comes from the law, without the
-        dense ``n_time x n_time`` Jacobian (and without ``k_model``); otherwise ``Jp`` is None.
+        dense ``n_time x n_time`` Jacobian (and without ``k_model``; with ``lazy`` a function
+        returning it); otherwise ``Jp`` is None.
         """
         E, Dm, _ = aft_basis(H, int(n_time), "F")
         u = U @ E.T  # (n_j, N)
@@ -330,11 +349,10 @@ class CondensedHB:
             v = omega * (Ud @ E.T)
         for j, law in enumerate(self.laws):
             Dv = D = Jp = None
-            if jacobian and projection is not None and not getattr(law, "rate_dependent", False) and hasattr(
-                law, "aft_projected"
-            ):
-                f, Jp = law.aft_projected(u[j], projection, E)
-                yield j, u[j], None, f, None, None, Jp
+            if projection is not None and not getattr(law, "rate_dependent", False) and hasattr(law, "aft_projected"):
+                # the same force with or without the Jacobian (its projection deferred, unused without)
+                f, Jp = law.aft_projected(u[j], projection, E, lazy=lazy or not jacobian)
+                yield j, u[j], None, f, None, None, (Jp if jacobian else None)
                 continue
             if getattr(law, "rate_dependent", False):
                 f, Du, Dv = law.aft(u[j], v[j], velocity_jacobian=True, jacobian=jacobian)
@@ -349,11 +367,12 @@ class CondensedHB:
     def _force_vector(self, force, H):
         return resize_harmonics(np.ravel(force), H)
 
-    def evaluate(self, U, omega, force, H, n_time, jacobian=True, domega=False):
+    def evaluate(self, U, omega, force, H, n_time, jacobian=True, domega=False, lazy=False):
         """Residual ``R = U - b + G F(U)`` of the condensed balance, with its derivatives.
 
         Returns a dict with ``R``, ``F`` (joint force coefficients) and, as asked, ``J = dR/dU``
-        and ``Jw = dR/domega``.
+        and ``Jw = dR/domega``; with ``lazy`` those two only after the dict's ``complete()``
+        (for Newton's last residual, whose derivatives nobody uses).
         """
         nj = self.n_joints
         n = n_coefficients(H)
@@ -366,18 +385,27 @@ class CondensedHB:
             self._cache = (omega, H, G, Hm)
         Xf = to_complex(Fc)
         b = self._linear_part(omega, H, Xf, Hm)
-        F, JF, JFw = self.aft(U.reshape(nj, n), omega, H, n_time, jacobian=jacobian or domega, domega=domega)
+        want = jacobian or domega
+        F, finish = self.aft(U.reshape(nj, n), omega, H, n_time, jacobian=want, domega=domega, lazy=True)
         Fv = F.reshape(-1)
         ev = _Evaluation(R=U - b + G @ Fv, F=F, b=b, G=G, Hm=Hm, Xf=Xf)
-        if jacobian or domega:
-            ev["J"] = np.eye(U.size) + G @ JF
-        if domega:
-            k = np.arange(H + 1)
-            dH = self._d_receptance(k * omega) * k[:, None]  # chain rule of (k w)
-            dGk = np.einsum("jm,km,lm->kjl", self.joint_shapes, dH, self.joint_shapes)
-            dG = self._real_blocks(dGk, H, nj)
-            db = to_real(np.einsum("jm,km,m->jk", self.joint_shapes, dH, self.force_shape) * Xf).reshape(-1)
-            ev["Jw"] = -db + dG @ Fv + G @ JFw
+
+        def derivatives():
+            JF, JFw = finish()
+            if want:
+                ev["J"] = np.eye(U.size) + G @ JF
+            if domega:
+                k = np.arange(H + 1)
+                dH = self._d_receptance(k * omega) * k[:, None]  # chain rule of (k w)
+                dGk = np.einsum("jm,km,lm->kjl", self.joint_shapes, dH, self.joint_shapes)
+                dG = self._real_blocks(dGk, H, nj)
+                db = to_real(np.einsum("jm,km,m->jk", self.joint_shapes, dH, self.force_shape) * Xf).reshape(-1)
+                ev["Jw"] = -db + dG @ Fv + G @ JFw
+
+        if want and lazy:
+            ev._complete = derivatives
+        elif want:
+            derivatives()
         return ev
 
     def point(self, U, omega, force, H, n_time, ev=None, iterations=0, residual_norm=0.0) -> HBPoint:
@@ -505,10 +533,10 @@ class CondensedHB:
             return np.linalg.norm(r) / max(np.linalg.norm(Uv), scale * 1e-6)
 
         def residual(Uv):
-            ev = self.evaluate(Uv, w, Fc, H, N)
-            return ev["R"], ev["J"], error(ev["R"], Uv), ev
+            ev = self.evaluate(Uv, w, Fc, H, N, lazy=True)
+            return ev["R"], None, error(ev["R"], Uv), ev
 
-        out = damped_newton(U, residual, tol, max_iter)
+        out = damped_newton(U, residual, tol, max_iter, jacobian=lambda ev: ev.complete()["J"])
         U, ev, it, err = out.x, out.state, out.iterations, out.error
         if not out.converged:
             raise ConvergenceError(
@@ -583,11 +611,12 @@ class _Problem:
         return amp if amp > 0 else 1.0
 
     def evaluate(self, z, w, jacobian=False):
-        ev = self.e.evaluate(z, w, self.Fc, self.H, self.N, jacobian=True, domega=True)
+        ev = self.e.evaluate(z, w, self.Fc, self.H, self.N, jacobian=True, domega=True, lazy=True)
         R = ev["R"]
         err = float(np.linalg.norm(R) / max(np.linalg.norm(z), 1e-300))
         return {"R": R, "err": err, "z": z, "w": w, "ev": ev}
 
     def jacobian(self, ev, domega=True):
+        ev["ev"].complete()
         ev["J"] = ev["ev"]["J"]
         ev["Jw"] = ev["ev"]["Jw"]
