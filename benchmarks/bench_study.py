@@ -62,6 +62,31 @@ def _noop(i):
     return i
 
 
+def _thread_cpu():
+    """CPU seconds of each thread of this process by its Python name (Linux: /proc/self/task)."""
+    import threading
+
+    tick = os.sysconf("SC_CLK_TCK")
+    out = {}
+    for t in threading.enumerate():
+        try:
+            fields = Path(f"/proc/self/task/{t.native_id}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, TypeError):
+            continue
+        out[t.name] = out.get(t.name, 0.0) + (int(fields[11]) + int(fields[12])) / tick
+    return out
+
+
+def _split(before, after, is_task):
+    """CPU seconds between two ``_thread_cpu`` readings: (task threads, the others)."""
+    d = {k: v - before.get(k, 0.0) for k, v in after.items()}
+    return sum(v for k, v in d.items() if is_task(k)), sum(v for k, v in d.items() if not is_task(k))
+
+
+def _is_dask_task_thread(name):
+    return "Dask-Default-Threads" in name
+
+
 def _warm_up():
     import jointid.app.study  # noqa: F401 - imports are a one-off cost of a worker, not of its tasks
 
@@ -115,7 +140,7 @@ def main(argv=None):
         task = t_serial / n
         print(f"in this process (no dask):  {t_serial:7.2f} s wall, {cpu_serial:7.2f} s CPU   "
               f"task {1e3 * task:6.1f} ms")
-        results = {}
+        results, cpu_total = {}, {}
         for workers in (1, args.workers):
             t0 = time.perf_counter()
             with local_cluster(workers) as cl, distributed.Client(cl) as client:
@@ -127,15 +152,24 @@ def main(argv=None):
                           f"{1e3 * tw:.0f} ms on a worker ({tw / th:.3f}x); process {1e3 * ph:.0f} / {1e3 * pw:.0f} ms "
                           f"({pw / ph:.3f}x)")
                 _, t_noop, _ = timed(lambda: map_tasks(_noop, [(i,) for i in range(n)], client=client))
-                cpu0 = client.run(_cpu_s)
+                cpu0, here0, there0 = client.run(_cpu_s), _thread_cpu(), client.run(_thread_cpu)
                 _, t, cpu_main = timed(lambda: run_study(p, tmp / f"w{workers}", client=client, report=False))
                 cpu_workers = sum(client.run(_cpu_s).values()) - sum(cpu0.values())
+                here1, there1 = _thread_cpu(), client.run(_thread_cpu)
                 rss = client.run(_peak_rss_mb)
             results[workers] = t
+            cpu_total[workers] = cpu_workers + cpu_main
             print(f"local cluster, {workers} worker(s): {t:7.2f} s wall (start-up and imports {start:.2f} s)   "
                   f"ratio to in-process {t_serial / t:5.2f}x")
             print(f"    CPU: workers {cpu_workers:7.2f} s, this process (client and scheduler) {cpu_main:6.2f} s; "
                   f"CPU overhead per task {1e3 * (cpu_workers + cpu_main - cpu_serial) / n:6.2f} ms")
+            main, loops = _split(here0, here1, lambda name: name == "MainThread")
+            tasks, worker_loops = (sum(x) for x in zip(*(_split(there0.get(w, {}), there1[w], _is_dask_task_thread)
+                                                        for w in there1)))
+            print(f"    CPU per campaign by thread: tasks on the workers {1e3 * tasks / n:6.1f} ms (in-process run "
+                  f"{1e3 * cpu_serial / n:6.1f} ms, {tasks / cpu_serial:.3f}x), the workers' event loops "
+                  f"{1e3 * worker_loops / n:5.1f} ms, this process's main thread (client, results) {1e3 * main / n:5.1f} "
+                  f"ms and its other threads (scheduler, nannies, client's event loop) {1e3 * loops / n:5.1f} ms")
             print(f"    empty task round trip {1e3 * t_noop / n:6.2f} ms/task; "
                   f"peak memory per worker: {', '.join(f'{v:.0f} MB' for v in rss.values())}")
             if workers == 1:
@@ -143,6 +177,9 @@ def main(argv=None):
                 print(f"    per-task overhead {1e3 * over:6.2f} ms against a task of {1e3 * task:6.1f} ms "
                       f"({100 * over / task:.1f} %)")
         ratio = results[1] / results[args.workers]
+        w = args.workers
+        print(f"{w} workers: {t_serial / results[w]:.2f}x the in-process wall time (goal >= 1.6x on 2 cores), CPU "
+              f"{cpu_total[w] / cpu_serial:.2f}x the in-process CPU (goal <= 1.15x)")
         print(f"speed-up {args.workers} workers / 1 worker: {ratio:.2f}x (goal >= 1.8x on 2 quiet cores); "
               f"load average now {os.getloadavg()[0]:.2f}")
         same = {(tmp / d / "campaigns.jsonl").read_bytes() for d in ("serial", "w1", f"w{args.workers}")}
