@@ -116,6 +116,14 @@ class PolynomialLaw(JointLaw):
     def derived(self) -> dict:
         return {}
 
+    def replace(self, **changes):
+        """A new law with some coefficients changed, named as in :attr:`parameters` (``k3``, ``c``, ...)."""
+        names = [TERMS[t][0] for t, _ in self.terms]
+        unknown = [k for k in changes if k not in names]
+        if unknown:
+            raise StructureError(f"{self.name}: " + unknown_key_message(unknown[0], names, "parameter"))
+        return type(self)(tuple((t, changes.get(TERMS[t][0], v)) for t, v in self.terms))
+
     def summary(self) -> dict:
         out = super().summary()
         out["terms"] = [t for t, _ in self.terms]
