@@ -14,11 +14,14 @@ gives a lower ratio than a quiet one: compare the CPU time with the wall time), 
 overhead per task (workers' and this process's CPU time less the in-process run's: two runs
 one after the other, so a changing load shows in it), the paired CPU time per campaign (the
 same campaigns in this process and on a worker in turn, which a changing load does not bias),
-and checks
-that the three runs wrote the same ``campaigns.jsonl`` byte for byte.
+the CPU per campaign of each kind of thread (the tasks on the workers, the workers' event loops,
+this process's main thread, and its scheduler, nanny and client event-loop threads), the goal
+line (two workers' wall time and CPU against the in-process run), and checks that the three runs
+wrote the same ``campaigns.jsonl`` byte for byte.
 
     python benchmarks/bench_study.py                  # ~3 min on two quiet cores
     python benchmarks/bench_study.py --campaigns 50   # quicker
+    python benchmarks/bench_study.py --dask-intervals # with dask's default periodic callbacks
 """
 
 from __future__ import annotations
@@ -128,7 +131,17 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaigns", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--dask-intervals", action="store_true",
+                    help="run the clusters with dask's own intervals of its periodic callbacks (event loop check "
+                         "20 ms, system monitor 500 ms, memory monitor 100 ms) instead of the local cluster's, to "
+                         "see what they cost")
     args = ap.parse_args(argv)
+    if args.dask_intervals:
+        from jointid.app import parallel
+
+        parallel.WORKER_CONFIG = {k: v for k, v in parallel.WORKER_CONFIG.items()
+                                  if k not in ("distributed.admin.tick.interval", "distributed.admin.system-monitor"
+                                               ".interval", "distributed.worker.memory.monitor-interval")}
     import distributed
 
     n = args.campaigns
