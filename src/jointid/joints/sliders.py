@@ -238,7 +238,7 @@ def _stretches(u, du):
         return out
     sg = np.sign(du)
     a = 1
-    for e in (np.flatnonzero(sg[:-1] != sg[1:]) + 1).tolist() + [u.size - 1]:
+    for e in ((sg[:-1] != sg[1:]).nonzero()[0] + 1).tolist() + [u.size - 1]:
         if e >= a:
             out.append((a, e, int(sg[a - 1])))
         a = e + 1
@@ -254,7 +254,7 @@ def _fast_ok(u, du, x, phi):
     hi = float(adu.max(initial=0.0))
     if not (math.isfinite(hi) and math.isfinite(float(u[0])) and math.isfinite(float(x.sum()))):
         return False  # (a non-finite sample makes a non-finite step)
-    small = float(np.min(adu, where=adu > 0, initial=np.inf))
+    small = float(adu.min(where=adu > 0, initial=np.inf))
     return small > _EPS8 * (abs(float(u[0])) + hi * u.size + float(phi.max()))
 
 
@@ -263,10 +263,11 @@ _CP = [None, None]  # the last projection and its cumulative column sums
 
 
 def _cum_projection(P):
+    """``CPT[j] = sum_{t < j} P[:, t]`` (n + 1, c), rows contiguous; cached for the last ``P``."""
     if _CP[0] is not P:
-        CP = np.zeros((P.shape[0], P.shape[1] + 1))
-        np.cumsum(P, axis=1, out=CP[:, 1:])
-        _CP[:] = [P, CP]
+        CPT = np.zeros((P.shape[1] + 1, P.shape[0]))
+        np.cumsum(P.T, axis=0, out=CPT[1:])
+        _CP[:] = [P, CPT]
     return _CP[1]
 
 
@@ -275,17 +276,20 @@ def _onsets(us, S, phi, sgn):
     element from the states ``S`` at the stretch's start: the first ``t`` with
     ``u_t - phi > S`` (increasing; decreasing ``u_t + phi < S``) as the sample loop rounds it,
     found by ``searchsorted`` on ``S +- phi`` and corrected by one sample where rounding differs."""
-    L = us.size
+    pad = np.empty(us.size + 2)  # the stretch between sentinels: "slipping" after its end, not before its start
+    pad[1:-1] = us
     if sgn > 0:
-        o = np.searchsorted(us, S + phi, side="right")
-        at = us.take(np.minimum(o, L - 1)) - phi > S  # slipping at o
-        before = us.take(np.maximum(o - 1, 0)) - phi > S  # slipping one sample earlier
+        pad[0], pad[-1] = -np.inf, np.inf
+        o = us.searchsorted(S + phi, side="right")
+        at = pad.take(o + 1) - phi > S  # slipping at o
+        before = pad.take(o) - phi > S  # slipping one sample earlier
     else:
-        o = np.searchsorted(-us, phi - S, side="right")
-        at = us.take(np.minimum(o, L - 1)) + phi < S
-        before = us.take(np.maximum(o - 1, 0)) + phi < S
+        pad[0], pad[-1] = np.inf, -np.inf
+        o = (-us).searchsorted(phi - S, side="right")
+        at = pad.take(o + 1) + phi < S
+        before = pad.take(o) + phi < S
     # the rounded threshold is at most one sample early (not slipping at o) or late (slipping at o - 1)
-    return o + ((o < L) & ~at) - ((o > 0) & before)
+    return o + ~at - before
 
 
 def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
@@ -307,14 +311,15 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
     the Jacobian is returned as a function that projects it when called.
     """
     n = u.size
-    du = np.diff(u)
+    du = u[1:] - u[:-1]
     if not _fast_ok(u, du, x0, phi):
         return None
     m = k.size
     ktot = float(k.sum())
     kphi = k * phi
     x = np.array(x0, dtype=float)
-    last = np.full(m, -1, dtype=np.intp)
+    last = np.empty(m, dtype=np.intp)
+    last.fill(-1)
     parts = _stretches(u, du)
     for a, e, sgn in parts:  # first sweep: end states and latest slips only
         ue = u[e]
@@ -343,7 +348,8 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
             d[a] = ktot - float(k[mv].sum())
             f[a] = ktot * us[0] - float(xn @ k)
         elif sgn == 0:  # flat: nothing moves
-            o = np.full(m, L, dtype=np.intp)
+            o = np.empty(m, dtype=np.intp)
+            o.fill(L)
             d[a : e + 1] = ktot
             f[a : e + 1] = ktot * us - float(x @ k)
             xn, mv = x, o < L
@@ -354,13 +360,13 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
             bins[0] = np.bincount(o, weights=k, minlength=L + 1)
             bins[1] = np.bincount(o, weights=k * x, minlength=L + 1)
             bins[2] = np.bincount(o, weights=kphi, minlength=L + 1)
-            stuck = np.cumsum(bins[:2, :0:-1], axis=1)[:, ::-1]  # (2, L): k and k S of the elements stuck at t
+            stuck = bins[:2, :0:-1].cumsum(axis=1)[:, ::-1]  # (2, L): k and k S of the elements stuck at t
             kst = stuck[0]
             d[a : e + 1] = kst
-            f[a : e + 1] = sgn * np.cumsum(bins[2, :-1]) + kst * us - stuck[1]
+            f[a : e + 1] = sgn * bins[2, :-1].cumsum() + kst * us - stuck[1]
             mv = o < L
             xn = np.where(mv, us[-1] - sgn * phi, x)
-        st = np.flatnonzero((o > 0) & (last >= 0))  # stuck at the stretch's first sample, with a latest slip
+        st = ((o > 0) & (last >= 0)).nonzero()[0]  # stuck at the stretch's first sample, with a latest slip
         ons.append(a + o[st])
         starts.append((a, st.size))
         rows.append(last[st])
@@ -373,11 +379,11 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
         on = np.concatenate(ons)
         if on.size:
             a0, cnt = zip(*starts)
-            C = (CP[:, on] - CP[:, np.repeat(a0, cnt)]) * np.concatenate(wts)
-            J -= C @ E[np.concatenate(rows)]
+            C = (CP[on] - CP[np.array(a0).repeat(cnt)]) * np.concatenate(wts)[:, None]  # (K, c)
+            J -= C.T @ E[np.concatenate(rows)]
         if centre and never.any():
             kn = float(k[never].sum())
-            J -= np.multiply.outer(0.5 * kn * CP[:, n], E[int(np.argmax(u))] + E[int(np.argmin(u))])
+            J -= np.multiply.outer(0.5 * kn * CP[n], E[int(np.argmax(u))] + E[int(np.argmin(u))])
         return J
 
     return f, (project if lazy else project())

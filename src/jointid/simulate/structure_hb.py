@@ -241,6 +241,7 @@ class CondensedHB:
         self.laws = laws
         self._rigid = rigid
         self._cache = None  # (omega, H, G, Hm) of the last evaluation
+        self._pe = {}  # (H, n_time) -> P @ E (the identity to rounding), for k_model with projected laws
         self._rate = any(bool(getattr(law, "rate_dependent", False)) for law in laws)
 
     @property
@@ -265,9 +266,9 @@ class CondensedHB:
             out = 1.0 / den
         return np.where(den == 0, 0.0, out)
 
-    def _d_receptance(self, w):
-        """``d H / d w`` of :meth:`receptance` at harmonic frequencies ``w``."""
-        H = self.receptance(w)
+    def _d_receptance(self, w, H=None):
+        """``d H / d w`` of :meth:`receptance` at harmonic frequencies ``w`` (``H``: its receptances, if known)."""
+        H = self.receptance(w) if H is None else H
         w = np.asarray(w, float)[..., None]
         return -(H**2) * (-2.0 * w + 2j * self.zeta * self.omega)
 
@@ -324,7 +325,12 @@ class CondensedHB:
         def finish():
             for j, Jp in deferred:
                 Jj = Jp() if callable(Jp) else Jp
-                J[j, :, j, :] = Jj - self.k_model[j] * (P @ E) if self.k_model[j] else Jj
+                if self.k_model[j]:
+                    PE = self._pe.get((H, int(n_time)))
+                    if PE is None:
+                        PE = self._pe[H, int(n_time)] = P @ E
+                    Jj = Jj - self.k_model[j] * PE
+                J[j, :, j, :] = Jj
             return (None if J is None else J.reshape(nj * n, nj * n)), (None if Jw is None else Jw.reshape(-1))
 
         return (F, finish) if lazy else (F, *finish())
@@ -396,7 +402,7 @@ class CondensedHB:
                 ev["J"] = np.eye(U.size) + G @ JF
             if domega:
                 k = np.arange(H + 1)
-                dH = self._d_receptance(k * omega) * k[:, None]  # chain rule of (k w)
+                dH = self._d_receptance(k * omega, Hm) * k[:, None]  # chain rule of (k w)
                 dGk = np.einsum("jm,km,lm->kjl", self.joint_shapes, dH, self.joint_shapes)
                 dG = self._real_blocks(dGk, H, nj)
                 db = to_real(np.einsum("jm,km,m->jk", self.joint_shapes, dH, self.force_shape) * Xf).reshape(-1)
