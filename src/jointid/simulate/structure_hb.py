@@ -399,14 +399,18 @@ class CondensedHB:
         def derivatives():
             JF, JFw = finish()
             if want:
-                ev["J"] = np.eye(U.size) + G @ JF
+                J = G @ JF
+                J.flat[:: U.size + 1] += 1.0  # I + G dF/dU
+                ev["J"] = J
             if domega:
+                # d/dw of G F - b, harmonic by harmonic in complex form: the joint shapes times
+                # dH_k (psi^T F_k - phi_f X_k) (the real blocks of dG and db applied without forming them)
                 k = np.arange(H + 1)
                 dH = self._d_receptance(k * omega, Hm) * k[:, None]  # chain rule of (k w)
-                dGk = np.einsum("jm,km,lm->kjl", self.joint_shapes, dH, self.joint_shapes)
-                dG = self._real_blocks(dGk, H, nj)
-                db = to_real(np.einsum("jm,km,m->jk", self.joint_shapes, dH, self.force_shape) * Xf).reshape(-1)
-                ev["Jw"] = -db + dG @ Fv + G @ JFw
+                ps = self.joint_shapes
+                Z = dH * (to_complex(F).T @ ps - Xf[:, None] * self.force_shape)
+                Jw = to_real((Z @ ps.T).T).reshape(-1)
+                ev["Jw"] = Jw + G @ JFw if self._rate else Jw
 
         if want and lazy:
             ev._complete = derivatives
