@@ -15,39 +15,17 @@ import warnings
 
 import numpy as np
 import pytest
-from test_hysteretic_fsm import (
-    IWAN,
-    IWAN_LEVELS,
-    JENKINS,
-    JENKINS_LEVELS,
-    C,
-    K,
-    campaign,
-    noisy,
-)
+from test_hysteretic_fsm import campaign, noisy
+from test_predict_hysteretic import CASES, true_model
 
 from jointid.app.predict_hysteretic import (
     INDEPENDENT,
-    HystereticModel,
     _band_peak,
     hysteretic_response,
 )
 from jointid.identify.hysteretic import HystereticForceStateMapping
 
 N_CAMPAIGNS = 30
-
-
-CASES = {"jenkins": (JENKINS, JENKINS_LEVELS, 0.06), "iwan4": (IWAN, IWAN_LEVELS, 0.05)}
-
-
-def _true_model(name):
-    law = CASES[name][0]
-    if name == "jenkins":
-        return HystereticModel("jenkins", ("k", "c", "kt", "Fs", "slip_displacement"),
-                               np.array([K, C, law.kt, law.Fs, law.slip_displacement]), np.zeros((5, 5)))
-    return HystereticModel("iwan4", ("k", "c", "K_T", "F_S", "chi", "beta", "phi_max"),
-                           np.array([K, C, law.K_T, law.F_S, law.chi, law.beta, law.phi_max]), np.zeros((7, 7)),
-                           law.n_sliders, law.phi_min_ratio)
 
 
 @pytest.mark.slow
@@ -66,7 +44,7 @@ def test_peak_standard_errors_are_calibrated(name):
             th.append(res.values[idx])
             cv.append(res.covariance[np.ix_(idx, idx)])
     th, cv = np.array(th), np.array(cv)
-    tm = _true_model(name)
+    tm = true_model(law)
     idx = [tm.names.index(n) for n in names]
     theta = tm.values[idx]
     step = np.sqrt(np.diag(cv.mean(axis=0)))
