@@ -10,6 +10,7 @@ of each monotone stretch, which the play operator sees exactly).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -245,7 +246,7 @@ def _stretches(u, du):
     return out
 
 
-def _fast_ok(u, du, x, phi):
+def _fast_ok(u, du, x, phi_max):
     """Whether :func:`_slider_aft_projected` may take its per-stretch path: finite motion and start,
     and every non-zero step ``du`` of ``u`` larger than the rounding of ``u -+ phi`` (then a
     slipping element moves at every sample of a monotone stretch, as in the sample loop, and the
@@ -255,7 +256,7 @@ def _fast_ok(u, du, x, phi):
     if not (math.isfinite(hi) and math.isfinite(float(u[0])) and math.isfinite(float(x.sum()))):
         return False  # (a non-finite sample makes a non-finite step)
     small = float(adu.min(where=adu > 0, initial=np.inf))
-    return small > _EPS8 * (abs(float(u[0])) + hi * u.size + float(phi.max()))
+    return small > _EPS8 * (abs(float(u[0])) + hi * u.size + phi_max)
 
 
 _EPS8 = 8.0 * float(np.finfo(float).eps)
@@ -292,7 +293,7 @@ def _onsets(us, S, phi, sgn):
     return o + ~at - before
 
 
-def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
+def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False, consts=None):
     """Force samples and the projected Jacobian ``P (df/du) E`` of :func:`_slider_aft` for one
     finite motion ``u`` (n,), without the ``n x m`` states or the dense ``n x n`` Jacobian;
     ``None`` where :func:`_fast_ok` fails (the caller then takes :func:`_slider_aft`).
@@ -308,16 +309,16 @@ def _slider_aft_projected(u, k, phi, x0, P, E, centre=False, lazy=False):
     sum k_i e_t e_{L_i}^T`` over the stuck ones, ``d_t`` their stiffness, and ``P (df/du) E =
     (P d) E - sum_i k_i (sum_{t stuck} P[:, t]) E[L_i]`` with the column sums from a cumulative
     sum of ``P``.  Force and Jacobian agree with :func:`_slider_aft` to rounding.  With ``lazy``
-    the Jacobian is returned as a function that projects it when called.
+    the Jacobian is returned as a function that projects it when called.  ``consts``: the law's
+    ``(k phi, sum k, max phi)`` if known.
     """
     n = u.size
+    kphi, ktot, phi_max = (k * phi, float(k.sum()), float(phi.max())) if consts is None else consts
     du = u[1:] - u[:-1]
-    if not _fast_ok(u, du, x0, phi):
+    x = np.asarray(x0, dtype=float)  # (never written: every step makes a new array)
+    if not _fast_ok(u, du, x, phi_max):
         return None
     m = k.size
-    ktot = float(k.sum())
-    kphi = k * phi
-    x = np.array(x0, dtype=float)
     last = np.empty(m, dtype=np.intp)
     last.fill(-1)
     parts = _stretches(u, du)
@@ -466,6 +467,14 @@ class DiscreteIwan(JointLaw):
         x = np.minimum(np.maximum(np.asarray(state, float), uu - phi), uu + phi)
         return self.total_stiffness * u - x @ self.stiffness, x
 
+    @functools.cached_property
+    def _projection_constants(self):
+        """``(phi, k phi, sum k, max phi, zeros)`` for :meth:`aft_projected` (the law is immutable)."""
+        phi = self.slip_displacement
+        zeros = np.zeros(self.n_elements)
+        zeros.setflags(write=False)
+        return phi, self.stiffness * phi, float(self.stiffness.sum()), float(phi.max()), zeros
+
     def _start(self, u, state0):
         """Slider positions before the period (see :meth:`aft`'s ``state0``)."""
         if isinstance(state0, str):
@@ -521,10 +530,11 @@ class DiscreteIwan(JointLaw):
         ``lazy``: the Jacobian comes as a function that returns it (for a caller that may not need it).
         """
         u = np.asarray(u_t, float)
-        x0 = self._start(u, state0)
+        phi, kphi, ktot, phi_max, zeros = self._projection_constants
+        x0 = zeros if state0 is None and u.ndim == 1 else self._start(u, state0)
         centre = isinstance(state0, str)
-        phi = self.slip_displacement
-        out = _slider_aft_projected(u, self.stiffness, phi, x0, P, E, centre, lazy) if u.ndim == 1 and u.size else None
+        out = (_slider_aft_projected(u, self.stiffness, phi, x0, P, E, centre, lazy, (kphi, ktot, phi_max))
+               if u.ndim == 1 and u.size else None)
         if out is not None:
             return out
         f, D = _slider_aft(u, self.stiffness, phi, x0, True, centre)
