@@ -65,11 +65,20 @@ def test_bad_band_is_refused():
 
 @pytest.mark.slow
 def test_band_limited_standard_errors_are_calibrated():
-    """std(z) of the windows' frequency and damping over noisy impacts (non-overlapping windows)."""
-    zf, zz = [], []
+    """std(z) of the windows' frequency and damping over noisy impacts (non-overlapping windows).
+
+    The softening decay drifts inside its first windows beyond the noise (``misfit``): those keep
+    their own residual's level and are conservative; the others are calibrated to the noise.
+    """
+    zf, zz, mis = [], [], []
     for seed in range(8):
         t, x, f_of_a = _impact(noise=0.05, seed=seed)
         b = modal_ringdown(t, x, f_range=(60, 100), n_cycles=16, hop_cycles=16).backbone(measure="signal")
         zf += list((b.frequency_hz - f_of_a(b.amplitude)) / (b.omega_stderr / (2 * np.pi)))
         zz += list((b.zeta - 0.002) / b.zeta_stderr)
-    assert 0.8 < np.std(zf) < 1.25 and 0.8 < np.std(zz) < 1.25, (np.std(zf), np.std(zz))
+        mis += b.meta["misfit"]
+    zf, zz, mis = np.array(zf), np.array(zz), np.array(mis, bool)
+    assert 0 < mis.sum() < 0.4 * mis.size  # the drift of the first windows, not the whole decay
+    ok = ~mis
+    assert 0.8 < np.std(zf[ok]) < 1.25 and 0.8 < np.std(zz[ok]) < 1.25, (np.std(zf[ok]), np.std(zz[ok]))
+    assert np.max(np.abs(zf[mis])) < 3 and np.max(np.abs(zz[mis])) < 3

@@ -43,10 +43,14 @@ Band-limited decays without a force (:func:`band_limit`, :func:`modal_ringdown`)
     the frequency or the amplitude in time; the squared magnitude response).  Inside the
     pass band the filter leaves the decay of a mode as it is; its own start-up transient
     (a few over the bandwidth, ``~ 1 / B`` seconds) is skipped, and so is the impact itself.
-    The noise that remains is that of the band; the noise floor of the windows is that of
-    the band-limited signal, and the windows' standard errors (which assume white noise) are
-    scaled by ``sqrt((fs / 2) / B)`` with ``B`` the filter's equivalent noise bandwidth: the
-    variance of a sinusoid's fit goes with the noise density at its frequency.  The backbone can be given against the amplitude of the
+    The noise that remains is that of the band, correlated over about ``1 / B``: a window of
+    a few periods holds only ``~ 2 B T`` independent noise samples, and the fitted oscillation
+    takes up four of them.  The windows' covariances are therefore those of least squares
+    under the band-limited noise's autocorrelation (white noise through the filter; the
+    sandwich ``(J'J)^-1 J' S J (J'J)^-1``), and its level is the record's pooled residual over
+    ``tr((I - P) S)``, not each window's residual over ``N - 5`` (which, for a +-15 % band and
+    8-period windows, underestimated the standard errors about twice).  Overlapping windows
+    (``hop_cycles < n_cycles``) have correlated errors.  The backbone can be given against the amplitude of the
     recorded signal itself (``measure="signal"``: for an accelerometer the first-harmonic
     acceleration amplitude, the quantity a stepped-sine controller holds at that point)
     or against the displacement amplitude.
@@ -120,6 +124,12 @@ class DecayFit:
         Sample range of each window.
     kind : {"acceleration", "velocity", "displacement"}
     n_cycles, snr_min : float
+    misfit : ndarray of bool
+        The window's residual exceeds the record's noise beyond chance (its 99 % point):
+        the oscillation drifts inside the window or another mode is in it.  With
+        ``noise_acf`` (:func:`modal_ringdown`) the other windows' standard errors are those
+        of the record's noise; a misfit window's are from its own residual (conservative:
+        the drift's error is in its values, and the residual overstates it).
     """
 
     t_centre: np.ndarray
@@ -138,6 +148,7 @@ class DecayFit:
     snr_min: float = 30.0
     signal_amplitude: np.ndarray | None = None  # |C|: amplitude of the recorded signal at the window's centre
     signal_amplitude_stderr: np.ndarray | None = None
+    misfit: np.ndarray | None = None
 
     def __len__(self):
         return int(self.t_centre.size)
@@ -157,6 +168,8 @@ class DecayFit:
             a, ase = self.amplitude, self.amplitude_stderr
         meta = {"t_centre": self.t_centre[keep].tolist(), "state_error": self.state_error[keep].tolist(),
                 "measure": measure}
+        if self.misfit is not None:
+            meta["misfit"] = self.misfit[keep].tolist()
         if amplitude_unit:
             meta["amplitude_unit"] = amplitude_unit
         return Backbone(a[keep], self.omega_n[keep], self.zeta[keep], self.omega_stderr[keep],
@@ -220,8 +233,17 @@ class DecayFit:
         return f"<pre>{html.escape(self.report())}</pre>"
 
 
-def _fit_window(tau, x, sigma0, wd0):
-    """Damped-oscillation fit of one window: ``(coef [Re C, Im C, sigma, wd, x0], cov, residual rms)``."""
+def _fit_window(tau, x, sigma0, wd0, acf=None):
+    """Damped-oscillation fit of one window.
+
+    Returns ``(coef [Re C, Im C, sigma, wd, x0], cov1, rss, trace, nu)``: ``cov1`` is the
+    covariance of ``coef`` per unit noise variance, ``rss`` the residual sum of squares and
+    ``trace`` its expectation per unit noise variance (``E rss = s^2 trace``), ``nu`` the
+    residual's effective degrees of freedom.  White noise without ``acf``; with ``acf`` (the
+    noise's autocorrelation at lags ``0, 1, ...`` samples, ``acf[0] = 1``) the sandwich
+    ``(J'J)^-1 J' S J (J'J)^-1`` of least squares under correlated noise, and
+    ``trace = tr((I - P) S)``, ``nu = trace^2 / tr(((I - P) S)^2)`` (Satterthwaite).
+    """
 
     def design(sigma, wd):
         e = np.exp(-sigma * tau)
@@ -239,8 +261,7 @@ def _fit_window(tau, x, sigma0, wd0):
     A = design(sigma, wd)
     c, *_ = np.linalg.lstsq(A, x, rcond=None)
     r = A @ c - x
-    dof = max(x.size - 5, 1)
-    s2 = float(r @ r) / dof
+    rss = float(r @ r)
     # full Jacobian in (Re C, Im C, sigma, wd, x0)
     e = np.exp(-sigma * tau)
     co, si = np.cos(wd * tau), np.sin(wd * tau)
@@ -248,12 +269,63 @@ def _fit_window(tau, x, sigma0, wd0):
     dsig = -tau * model
     dwd = e * (-c[0] * tau * si - c[1] * tau * co)
     J = np.column_stack([A[:, 0], A[:, 1], dsig, dwd, A[:, 2]])
-    cov = np.linalg.pinv(J.T @ J) * s2
-    return np.array([c[0], c[1], sigma, wd, c[2]]), cov, np.sqrt(s2)
+    coef = np.array([c[0], c[1], sigma, wd, c[2]])
+    inv = np.linalg.pinv(J.T @ J)
+    n = x.size
+    if acf is None:
+        dof = float(max(n - 5, 1))
+        return coef, inv, rss, dof, dof
+    from scipy.linalg import matmul_toeplitz
+
+    a = np.zeros(n)
+    m = min(n, len(acf))
+    a[:m] = acf[:m]
+    Q, _ = np.linalg.qr(J)
+    SQ = matmul_toeplitz(a, Q)
+    QSQ = Q.T @ SQ
+    SJ = matmul_toeplitz(a, J)
+    cov1 = inv @ (J.T @ SJ) @ inv
+    trace = n * a[0] - float(np.trace(QSQ))
+    tr_s2 = n * a[0] ** 2 + 2.0 * float(np.sum((n - np.arange(1, n)) * a[1:] ** 2))
+    tr_w2 = tr_s2 - 2.0 * float(np.sum(SQ * SQ)) + float(np.sum(QSQ * QSQ))
+    trace = max(trace, 1e-12 * n)
+    return coef, 0.5 * (cov1 + cov1.T), rss, trace, trace**2 / max(tr_w2, 1e-300)
+
+
+def _noise_scale(rss, trace, nu, pooled):
+    """Noise variance of each window and whether its residual exceeds the noise beyond chance.
+
+    ``own = rss / trace`` is a window's own estimate (``s^2 chi2_nu / nu``).  The record's level
+    is first the median of ``own`` over that of ``chi2_nu / nu`` (robust to windows with model
+    error): windows whose ``own`` is above its 99 % point are the misfits (drift within the
+    window, another mode).  The level is then the pooled ``sum(rss) / sum(trace)`` of the later
+    half of the other windows: the decay's smaller amplitudes, where the residual of a drift
+    that falls with the amplitude is least (windows of a softening decay below the misfit
+    threshold still raised the level of the whole record by about a tenth).
+    With ``pooled`` (stationary noise, the usual case of a ring-down whose noise floor does not
+    decay with the signal) the windows take the record's level: needed where a window holds
+    few independent noise samples (a narrow band and a short window: ``nu`` of a few).  A
+    misfit keeps its own, larger level: its values carry the drift's error, which the residual
+    shows but the noise does not (a Jenkins joint's slip windows, residuals 30-130 times the
+    noise; with the noise level alone a law fitted through them missed ``Fs`` by 3.7 standard
+    errors).  Without ``pooled``, each window its own ``own``.
+    """
+    from scipy import stats
+
+    own = rss / trace
+    if rss.size < 2:
+        return own, np.zeros(rss.size, bool)
+    nu_m = float(np.median(nu))
+    s2 = float(np.median(own)) / (stats.chi2.median(nu_m) / nu_m)
+    misfit = own > s2 * stats.chi2.ppf(0.99, nu) / nu
+    late = (np.arange(rss.size) >= rss.size // 2) & ~misfit
+    late = late if late.any() else ~misfit
+    s2 = float(np.sum(rss[late]) / np.sum(trace[late]))
+    return (np.where(misfit, np.maximum(own, s2), s2) if pooled else own), misfit
 
 
 def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, hop_cycles=6.0, snr_min=30.0,
-              start=None, channel="accel") -> DecayFit:
+              start=None, channel="accel", noise_acf=None) -> DecayFit:
     """Windowed damped-oscillation fit of a free decay (module docstring).
 
     Parameters
@@ -276,10 +348,20 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, ho
         release).
     channel : str
         Name used in messages.
+    noise_acf : array, optional
+        Autocorrelation of the noise at lags ``0, 1, ...`` samples (any scale), for a record
+        whose noise is not white (a band-limited one, :func:`modal_ringdown`).  The windows'
+        covariances are then those of least squares under that correlation (sandwich), with
+        the noise level pooled over the record (stationary noise; windows whose residual
+        exceeds it beyond chance keep their own level and are flagged ``misfit``).  Default:
+        white noise, each window's own residual.
 
     Returns
     -------
     DecayFit
+        Windows overlap when ``hop_cycles < n_cycles``: their errors are then correlated
+        (by about the overlapping fraction), and a fit through the points of a backbone must
+        not count them as independent (use ``hop_cycles = n_cycles`` for that).
 
     Raises
     ------
@@ -307,19 +389,29 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, ho
             f"channel {channel!r}: the decay spans {(t.size - i_start) * dt * f0:.3g} periods of {f0:.4g} Hz; "
             f"a window of {n_cycles:g} periods (at least 8 samples) is needed")
     p = {"acceleration": 2, "velocity": 1, "displacement": 0}[kind]
-    rows, covs, windows, errs = [], [], [], []
+    acf = None
+    if noise_acf is not None:
+        acf = np.asarray(noise_acf, float).ravel()
+        if not (acf.size and np.isfinite(acf).all() and acf[0] > 0):
+            raise RecordError(f"channel {channel!r}: noise_acf must be finite with a positive lag-0 value")
+        acf = acf / acf[0]
+    rows, covs, windows, errs, fits = [], [], [], [], []
     sigma, wd = 0.0, 2 * np.pi * f0
     for i0 in range(i_start, t.size - n_win + 1, hop):
         i1 = i0 + n_win
         tc = 0.5 * (t[i0] + t[i1 - 1])
-        coef, cov, rms = _fit_window(t[i0:i1] - tc, x[i0:i1], sigma, wd)
+        coef, cov1, rss, trace, nu = _fit_window(t[i0:i1] - tc, x[i0:i1], sigma, wd, acf)
         if not (np.isfinite(coef).all() and coef[3] > 0):
             break
         sigma, wd = coef[2], coef[3]
         rows.append(np.append(coef, tc))
-        covs.append(cov)
+        covs.append(cov1)
+        fits.append((rss, trace, nu))
         windows.append((i0, i1))
-        errs.append(rms / max(np.hypot(coef[0], coef[1]), 1e-300))
+        errs.append(np.sqrt(rss / max(i1 - i0 - 5, 1)) / max(np.hypot(coef[0], coef[1]), 1e-300))
+    rss, trace, nu = (np.array(v) for v in zip(*fits))
+    s2, misfit = _noise_scale(rss, trace, nu, acf is not None)
+    covs = [c * v for c, v in zip(covs, s2)]
     R = np.array(rows)
     C = R[:, 0] + 1j * R[:, 1]
     sigma, wd = R[:, 2].copy(), R[:, 3]
@@ -350,7 +442,8 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, ho
                      / max(c_abs[i], 1e-300) for i, cov in enumerate(covs)])
     return DecayFit(_readonly(R[:, 5]), _readonly(amp), _readonly(a_se), _readonly(wn), _readonly(w_se),
                     _readonly(zeta), _readonly(z_se), _readonly(errs), np.array(floor), _readonly(coefs),
-                    tuple(windows), kind, float(n_cycles), float(snr_min), _readonly(c_abs), _readonly(c_se))
+                    tuple(windows), kind, float(n_cycles), float(snr_min), _readonly(c_abs), _readonly(c_se),
+                    np.array(misfit, bool))
 
 
 def band_limit(t, x, band, order=4, channel="accel") -> np.ndarray:
@@ -428,31 +521,26 @@ def modal_ringdown(t, x, *, frequency_hz=None, band=None, half_width=None, order
     start = t[i_peak] + settle / f0
     # the backward pass starts up at the end of the record as the forward pass does at its start
     keep = t <= t[-1] - settle / f0
-    d = fit_decay(t[keep], y[keep], kind=kind, frequency_hz=f0, n_cycles=n_cycles, hop_cycles=hop_cycles,
-                  snr_min=snr_min, start=start, channel=channel)
-    # the windows' standard errors assume white noise; the band-limited noise has its power in the
-    # band: the variance of a sinusoid's fit goes with the noise density at f0, (fs / 2) / B_enb larger
-    k = np.sqrt(_noise_factor(t, band, order, f0))
-    from dataclasses import replace
-
-    a_se, w_se, z_se, c_se = (k * np.asarray(v) for v in (d.amplitude_stderr, d.omega_stderr, d.zeta_stderr,
-                                                          d.signal_amplitude_stderr))
-    return replace(d, amplitude_stderr=_readonly(a_se), omega_stderr=_readonly(w_se), zeta_stderr=_readonly(z_se),
-                   signal_amplitude_stderr=_readonly(c_se), below_noise_floor=np.asarray(d.amplitude < snr_min * a_se))
+    n_win = int(round(n_cycles * (t.size - 1) / ((t[-1] - t[0]) * f0)))
+    # the band-limited noise is correlated over ~1 / B: the windows' covariances take its
+    # autocorrelation (that of white noise through the forward-backward filter)
+    return fit_decay(t[keep], y[keep], kind=kind, frequency_hz=f0, n_cycles=n_cycles, hop_cycles=hop_cycles,
+                     snr_min=snr_min, start=start, channel=channel,
+                     noise_acf=_noise_acf(t, band, order, max(n_win, 8)))
 
 
-def _noise_factor(t, band, order, f0) -> float:
-    """``(fs / 2) / B_enb`` of the forward-backward filter (equivalent noise bandwidth at ``f0``)."""
+def _noise_acf(t, band, order, n) -> np.ndarray:
+    """Autocorrelation (lags ``0 .. n-1`` samples, lag 0 = 1) of white noise after :func:`band_limit`."""
     from scipy import signal as _signal
 
     fs = (t.size - 1) / (t[-1] - t[0])
     sos = _signal.butter(int(order), [float(band[0]), float(band[1])], btype="bandpass", fs=fs, output="sos")
-    f = np.linspace(0, fs / 2, 1 << 16)
-    _, h = _signal.sosfreqz(sos, worN=f, fs=fs)
-    g = np.abs(h) ** 2  # forward and backward
-    g0 = np.interp(f0, f, g)
-    b_enb = float(np.trapezoid(g**2, f)) / g0**2
-    return max((fs / 2) / b_enb, 1.0)
+    # power response |H|^4 (forward and backward) on a grid fine enough that the circular
+    # autocorrelation has decayed long before it wraps (at least 8 windows, 64 / B)
+    m = 1 << int(np.ceil(np.log2(max(8 * n, 64 * fs / (float(band[1]) - float(band[0])), 1 << 12))))
+    _, h = _signal.sosfreqz(sos, worN=np.linspace(0.0, np.pi, m // 2 + 1))  # the rfft grid of m samples
+    acf = np.fft.irfft(np.abs(h) ** 4, m)[:n]
+    return acf / acf[0]
 
 
 def monotone_check(amplitude, omega, omega_stderr, n_sigma=2.0) -> dict:
