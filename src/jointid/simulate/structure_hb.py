@@ -242,6 +242,7 @@ class CondensedHB:
         self._rigid = rigid
         self._cache = None  # (omega, H, G, Hm) of the last evaluation
         self._pe = {}  # (H, n_time) -> P @ E (the identity to rounding), for k_model with projected laws
+        self._fcache = None  # (force as given, a copy, H, Fc, Xf) of the last evaluation
         self._rate = any(bool(getattr(law, "rate_dependent", False)) for law in laws)
 
     @property
@@ -262,9 +263,12 @@ class CondensedHB:
         """
         w = np.asarray(w, float)[..., None]
         den = modal_denominator(self.omega, self.zeta, w, xi)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out = 1.0 / den
-        return np.where(den == 0, 0.0, out)
+        zero = den == 0
+        if not zero.any():
+            return 1.0 / den
+        out = 1.0 / np.where(zero, 1.0, den)
+        out[zero] = 0.0
+        return out
 
     def _d_receptance(self, w, H=None):
         """``d H / d w`` of :meth:`receptance` at harmonic frequencies ``w`` (``H``: its receptances, if known)."""
@@ -382,14 +386,20 @@ class CondensedHB:
         """
         nj = self.n_joints
         n = n_coefficients(H)
-        Fc = self._force_vector(force, H)
+        fc = self._fcache
+        if fc is None or fc[0] is not force or fc[2] != H or not np.array_equal(fc[1], force):
+            Fc = self._force_vector(force, H)
+            Xf = to_complex(Fc)
+            Fc.setflags(write=False)
+            Xf.setflags(write=False)
+            fc = self._fcache = (force, np.array(force, float), H, Fc, Xf)
+        Fc, Xf = fc[3], fc[4]
         cached = self._cache
         if cached is not None and cached[0] == omega and cached[1] == H:
             G, Hm = cached[2], cached[3]
         else:
             G, Hm = self.condensed(omega, H)
             self._cache = (omega, H, G, Hm)
-        Xf = to_complex(Fc)
         b = self._linear_part(omega, H, Xf, Hm)
         want = jacobian or domega
         F, finish = self.aft(U.reshape(nj, n), omega, H, n_time, jacobian=want, domega=domega, lazy=True)
