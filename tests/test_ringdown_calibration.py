@@ -72,7 +72,8 @@ def test_standard_errors_are_calibrated_across_bands_windows_and_overlap():
                     zz += list((b.zeta - ZETA) / b.zeta_stderr)
                 zf, zz = np.array(zf), np.array(zz)
                 out.append((hw, nc, hop, zf.size, zf.std(), zz.std(), zf.mean(), zz.mean()))
-    print("\n".join("+-%.2f %2d/%4.1f n %3d std %.2f %.2f mean %+.2f %+.2f" % r for r in out))
+    print("\n".join(f"+-{hw:.2f} {nc:2d}/{hop:4.1f} n {n:3d} std {sf:.2f} {sz:.2f} mean {mf:+.2f} {mz:+.2f}"
+                    for hw, nc, hop, n, sf, sz, mf, mz in out))
     for hw, nc, hop, n, sf, sz, mf, mz in out:
         assert 0.8 < sf < 1.25 and 0.8 < sz < 1.25, (hw, nc, hop, sf, sz)
         assert abs(mf) < 0.25 and abs(mz) < 0.25, (hw, nc, hop, mf, mz)

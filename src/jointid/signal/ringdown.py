@@ -216,6 +216,7 @@ class DecayFit:
             "n_cycles": self.n_cycles,
             "snr_min": self.snr_min,
             "state_error_median": float(np.median(self.state_error)) if len(self) else None,
+            "n_misfit": int(np.count_nonzero(self.misfit)) if self.misfit is not None else None,
             "amplitude_range": [float(self.amplitude[~self.below_noise_floor].min()),
                                 float(self.amplitude[~self.below_noise_floor].max())] if n_ok else None,
         }
@@ -506,6 +507,11 @@ def modal_ringdown(t, x, *, frequency_hz=None, band=None, half_width=None, order
     -------
     DecayFit
         With ``signal_amplitude``: the first-harmonic amplitude of the band-limited signal.
+        The standard errors are calibrated to the band's noise (module docstring; ``misfit``
+        windows are conservative).  With ``hop_cycles < n_cycles`` (the default) neighbouring
+        windows share samples and their errors are correlated: a downstream fit that counts the
+        backbone's points as independent (``jointid.app.update_backbone``) needs
+        ``hop_cycles = n_cycles``.
     """
     t = check_signal(t, "time")
     check_time_base(t)
@@ -537,7 +543,7 @@ def _noise_acf(t, band, order, n) -> np.ndarray:
     sos = _signal.butter(int(order), [float(band[0]), float(band[1])], btype="bandpass", fs=fs, output="sos")
     # power response |H|^4 (forward and backward) on a grid fine enough that the circular
     # autocorrelation has decayed long before it wraps (at least 8 windows, 64 / B)
-    m = 1 << int(np.ceil(np.log2(max(8 * n, 64 * fs / (float(band[1]) - float(band[0])), 1 << 12))))
+    m = 1 << (int(max(8 * n, 64 * fs / (float(band[1]) - float(band[0])), 1 << 12)) - 1).bit_length()
     _, h = _signal.sosfreqz(sos, worN=np.linspace(0.0, np.pi, m // 2 + 1))  # the rfft grid of m samples
     acf = np.fft.irfft(np.abs(h) ** 4, m)[:n]
     return acf / acf[0]
