@@ -665,7 +665,16 @@ def test_output_set_replaced_whole_and_stale_files_removed(base, tmp_path, capsy
     assert not any("y" * 30 in p.name for p in (out / "figures").iterdir())
 
 
-def test_interrupted_write_leaves_the_previous_set(base, tmp_path, capsys, monkeypatch):
+def _wrapped_interrupt():
+    """A Ctrl-C as Python reports it when it arrives inside a class body's ``__set_name__`` (an import)."""
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as exc:
+        raise RuntimeError("Error calling __set_name__ on '_lazy' instance 'x' in 'Y'") from exc
+
+
+@pytest.mark.parametrize("wrapped", [False, True])
+def test_interrupted_write_leaves_the_previous_set(base, tmp_path, capsys, monkeypatch, wrapped):
     import jointid.report.output as output
 
     camp = tmp_path / "camp"
@@ -681,6 +690,8 @@ def test_interrupted_write_leaves_the_previous_set(base, tmp_path, capsys, monke
     def interrupted(*a, **k):
         calls.append(1)
         if len(calls) == 2:
+            if wrapped:
+                _wrapped_interrupt()
             raise KeyboardInterrupt
         return real(*a, **k)
 

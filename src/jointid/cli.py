@@ -516,6 +516,17 @@ COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate":
             "update": _update}
 
 
+def _interrupted(exc) -> bool:
+    """True when ``exc`` was caused by a KeyboardInterrupt (its ``__cause__`` / ``__context__`` chain)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["public-data"]:  # its options belong to the examples' own parser
@@ -548,7 +559,10 @@ def main(argv=None) -> int:
         except JointidError as exc:
             print(f"jointid {args.command}: error: {exc}", file=sys.stderr)
             return EXIT_INPUT
-        except Exception:  # an unexpected failure: say so, with the traceback, and a distinct code
+        except Exception as exc:  # an unexpected failure: say so, with the traceback, and a distinct code
+            if _interrupted(exc):  # a Ctrl-C that Python wrapped (e.g. raised inside a class body's __set_name__)
+                print(f"jointid {args.command}: interrupted; earlier results are left as they were", file=sys.stderr)
+                return EXIT_INTERRUPTED
             import traceback
 
             traceback.print_exc()
