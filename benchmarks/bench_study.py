@@ -19,7 +19,14 @@ this process's main thread, and its scheduler, nanny and client event-loop threa
 line (two workers' wall time and CPU against the in-process run), and checks that the three runs
 wrote the same ``campaigns.jsonl`` byte for byte.
 
-    python benchmarks/bench_study.py                  # ~3 min on two quiet cores
+Then ``--rounds`` interleaved rounds (default 3 of 40 campaigns): the study in this process, on
+the workers, and as as many plain Python processes side by side (no dask), each round's ratios
+taken within the round.  A virtual machine's speed can drift by a quarter between two runs a
+minute apart (the same 40 campaigns took 420-595 ms each in consecutive runs here), which biases
+the single runs above; the rounds' medians are not biased by it, and the plain processes show
+what running two computations at once costs on the machine itself, apart from dask.
+
+    python benchmarks/bench_study.py                  # ~5 min on two quiet cores
     python benchmarks/bench_study.py --campaigns 50   # quicker
     python benchmarks/bench_study.py --dask-intervals # with dask's default periodic callbacks
 """
@@ -121,6 +128,65 @@ def paired_cpu(p, client, n=12):
     return [(statistics.median(x[k] for x in here), statistics.median(x[k] for x in there)) for k in (0, 1)]
 
 
+_SIDE = """
+import json, sys, time
+sys.path.insert(0, sys.argv[1])
+from bench_study import plan
+from jointid._blas import single_threaded
+from jointid.app.study import StudyPlan, run_campaign
+sp = StudyPlan.from_mapping(plan(int(sys.argv[2])))
+run = single_threaded(run_campaign)
+run(sp, 0)  # imports and first-call costs, as a warm worker has them
+c = time.process_time()
+for i in range(int(sys.argv[3]), int(sys.argv[4])):
+    run(sp, i)
+print(json.dumps({"cpu": time.process_time() - c}))
+"""
+
+
+def side_by_side(n, k):
+    """CPU seconds of ``k`` plain Python processes running ``n`` campaigns between them at the same time
+    (no dask): what the machine itself charges for running ``k`` computations at once."""
+    import json
+    import subprocess
+    import sys
+
+    here = str(Path(__file__).resolve().parent)
+    bounds = [round(i * n / k) for i in range(k + 1)]
+    procs = [subprocess.Popen([sys.executable, "-c", _SIDE, here, str(n), str(a), str(b)], stdout=subprocess.PIPE,
+                              text=True) for a, b in zip(bounds[:-1], bounds[1:])]
+    return sum(json.loads(q.communicate()[0])["cpu"] for q in procs)
+
+
+def interleaved(p, n, workers, rounds, tmp):
+    """Rounds of: the study in this process, on ``workers`` workers (one warm cluster), and as ``workers`` plain
+    processes side by side; the ratios within each round (a machine whose speed drifts between runs biases one
+    long run against the next, not the rounds' medians)."""
+    import statistics
+
+    import distributed
+
+    rows = []
+    with local_cluster(workers) as cl, distributed.Client(cl) as client:
+        client.run(_warm_up)
+        run_study(plan(2), tmp / "warm", client=client, report=False)
+        for r in range(rounds):
+            _, t_in, c_in = timed(lambda r=r: run_study(p, tmp / f"in{r}", report=False))
+            cpu0 = client.run(_cpu_s)
+            _, t_w, c_main = timed(lambda r=r: run_study(p, tmp / f"wk{r}", client=client, report=False))
+            c_w = sum(client.run(_cpu_s).values()) - sum(cpu0.values()) + c_main
+            c_side = side_by_side(n, workers)
+            rows.append((t_in / t_w, c_w / c_in, c_side / c_in, c_w / c_side))
+            print(f"  round {r + 1}: {workers} workers {t_in / t_w:.2f}x the in-process wall, CPU {c_w / c_in:.2f}x; "
+                  f"{workers} plain processes side by side CPU {c_side / c_in:.2f}x; workers / plain {c_w / c_side:.2f}x "
+                  f"(in-process {1e3 * c_in / n:.0f} ms per campaign)")
+    med = [statistics.median(x) for x in zip(*rows)]
+    print(f"median of {rounds} rounds: {workers} workers {med[0]:.2f}x the in-process wall time (goal >= 1.6x), CPU "
+          f"{med[1]:.2f}x the in-process CPU (goal <= 1.15x); the machine's own cost of {workers} computations at once "
+          f"(plain processes) {med[2]:.2f}x; dask's part {med[3]:.2f}x")
+    return med
+
+
 def timed(fn):
     w, c = time.perf_counter(), time.process_time()
     out = fn()
@@ -131,6 +197,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaigns", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=3,
+                    help="interleaved rounds (in-process, workers, plain processes) after the single runs; 0: none")
+    ap.add_argument("--round-campaigns", type=int, default=40, help="campaigns per interleaved round")
     ap.add_argument("--dask-intervals", action="store_true",
                     help="run the clusters with dask's own intervals of its periodic callbacks (event loop check "
                          "20 ms, system monitor 500 ms, memory monitor 100 ms) instead of the local cluster's, to "
@@ -197,6 +266,9 @@ def main(argv=None):
               f"load average now {os.getloadavg()[0]:.2f}")
         same = {(tmp / d / "campaigns.jsonl").read_bytes() for d in ("serial", "w1", f"w{args.workers}")}
         print("campaigns.jsonl identical in the three runs:", len(same) == 1)
+        if args.rounds > 0:
+            print(f"interleaved rounds of {args.round_campaigns} campaigns (load average {os.getloadavg()[0]:.2f}):")
+            interleaved(plan(args.round_campaigns), args.round_campaigns, args.workers, args.rounds, tmp)
 
 
 if __name__ == "__main__":
