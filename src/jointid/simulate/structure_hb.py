@@ -183,6 +183,9 @@ class _Evaluation(dict):
         return self
 
 
+_REAL_BLOCK_INDEX = {}  # (H, n_j) -> flat positions of CondensedHB._real_blocks' entries
+
+
 class CondensedHB:
     """Harmonic balance of a modal model with joint elements, condensed on the joint coordinates.
 
@@ -244,6 +247,10 @@ class CondensedHB:
         self._pe = {}  # (H, n_time) -> P @ E (the identity to rounding), for k_model with projected laws
         self._fcache = None  # (force as given, a copy, H, Fc, Xf) of the last evaluation
         self._rate = any(bool(getattr(law, "rate_dependent", False)) for law in laws)
+        # psi_jm psi_lm (m, n_j^2) and psi_jm phi_m (m, n_j), complex: the receptances' contractions as one product
+        self._omega_sq, self._i2zo = om**2, 1j * (2 * ze * om - 0.0)  # modal_denominator's Omega^2, i (2 zeta Omega - xi)
+        self._shape_products = (ps[:, None, :] * ps[None, :, :]).reshape(-1, ps.shape[1]).T.astype(complex)
+        self._force_products = (ps * pf).T.astype(complex)
 
     @property
     def n_modes(self) -> int:
@@ -262,7 +269,10 @@ class CondensedHB:
         ``2 zeta Omega`` becomes ``2 zeta Omega - xi``.
         """
         w = np.asarray(w, float)[..., None]
-        den = modal_denominator(self.omega, self.zeta, w, xi)
+        if xi == 0.0:  # modal_denominator's operations with its constant factors kept: the same values to the bit
+            den = self._omega_sq - w**2 + self._i2zo * w
+        else:
+            den = modal_denominator(self.omega, self.zeta, w, xi)
         zero = den == 0
         if not zero.any():
             return 1.0 / den
@@ -278,26 +288,35 @@ class CondensedHB:
 
     @staticmethod
     def _real_blocks(Gk, H, nj):
-        n = n_coefficients(H)
-        G = np.zeros((nj, n, nj, n))
-        G[:, 0, :, 0] = Gk[0].real
-        a = np.arange(1, 2 * H, 2)  # cos rows of harmonics 1..H; sin rows a + 1
-        Gr, Gi = Gk[1:].real, Gk[1:].imag  # (H, nj, nj): the order of the mixed index G[:, a, :, a]
-        G[:, a, :, a] = Gr
-        G[:, a, :, a + 1] = Gi
-        G[:, a + 1, :, a] = -Gi
-        G[:, a + 1, :, a + 1] = Gr
-        return G.reshape(nj * n, nj * n)
+        """Real form (n_j n, n_j n) of the complex harmonic blocks ``Gk`` (H+1, n_j, n_j): per harmonic
+        ``[[Re, Im], [-Im, Re]]`` on its cos/sin rows, the constant's real part; one scatter of
+        ``[Re G_0, Re G_k, Im G_k, -Im G_k, Re G_k]`` at positions cached per ``(H, n_j)``."""
+        tgt = _REAL_BLOCK_INDEX.get((H, nj))
+        if tgt is None:
+            n = n_coefficients(H)
+            j, l = np.arange(nj)[:, None], np.arange(nj)[None, :]
+            a = np.arange(1, 2 * H, 2)[:, None, None]  # cos rows of harmonics 1..H; sin rows a + 1
+            at = lambda r, c: ((j * n + r) * nj + l) * n + c  # noqa: E731 (flat index of G[j, r, l, c])
+            z = np.zeros((1, 1, 1), dtype=np.intp)
+            tgt = np.concatenate([np.broadcast_to(at(r, c), (r.shape[0], nj, nj)).ravel()
+                                  for r, c in ((z, z), (a, a), (a, a + 1), (a + 1, a), (a + 1, a + 1))])
+            _REAL_BLOCK_INDEX[H, nj] = tgt
+        Gr, Gi = Gk.real, Gk[1:].imag
+        G = np.zeros((nj * n_coefficients(H)) ** 2)
+        G[tgt] = np.concatenate((Gr, Gi, -Gi, Gr[1:]), axis=None)
+        n = nj * n_coefficients(H)
+        return G.reshape(n, n)
 
     def condensed(self, omega, H):
         """Real condensed receptance ``G`` (n_j n, n_j n) and the complex modal receptances (H+1, n_modes)."""
         k = np.arange(H + 1)
         Hm = self.receptance(k * omega)
-        Gk = np.einsum("jm,km,lm->kjl", self.joint_shapes, Hm, self.joint_shapes)
-        return self._real_blocks(Gk, H, self.n_joints), Hm
+        nj = self.n_joints
+        Gk = (Hm @ self._shape_products).reshape(H + 1, nj, nj)  # sum_m psi_jm H_km psi_lm
+        return self._real_blocks(Gk, H, nj), Hm
 
     def _linear_part(self, omega, H, Xf, Hm):
-        return to_real(np.einsum("jm,km,m->jk", self.joint_shapes, Hm, self.force_shape) * Xf).reshape(-1)
+        return to_real((Hm @ self._force_products).T * Xf).reshape(-1)  # sum_m psi_jm H_km phi_m X_k
 
     # --- nonlinear pieces -------------------------------------------------------------
     def aft(self, U, omega, H, n_time, jacobian=True, domega=False, lazy=False):
