@@ -247,8 +247,8 @@ class CondensedHB:
         self._pe = {}  # (H, n_time) -> P @ E (the identity to rounding), for k_model with projected laws
         self._fcache = None  # (force as given, a copy, H, Fc, Xf) of the last evaluation
         self._rate = any(bool(getattr(law, "rate_dependent", False)) for law in laws)
-        # psi_jm psi_lm (m, n_j^2) and psi_jm phi_m (m, n_j), complex: the receptances' contractions as one product
         self._omega_sq, self._i2zo = om**2, 1j * (2 * ze * om - 0.0)  # modal_denominator's Omega^2, i (2 zeta Omega - xi)
+        # psi_jm psi_lm (m, n_j^2) and psi_jm phi_m (m, n_j), complex: the receptances' contractions as one product
         self._shape_products = (ps[:, None, :] * ps[None, :, :]).reshape(-1, ps.shape[1]).T.astype(complex)
         self._force_products = (ps * pf).T.astype(complex)
 
@@ -302,9 +302,9 @@ class CondensedHB:
                                   for r, c in ((z, z), (a, a), (a, a + 1), (a + 1, a), (a + 1, a + 1))])
             _REAL_BLOCK_INDEX[H, nj] = tgt
         Gr, Gi = Gk.real, Gk[1:].imag
-        G = np.zeros((nj * n_coefficients(H)) ** 2)
-        G[tgt] = np.concatenate((Gr, Gi, -Gi, Gr[1:]), axis=None)
         n = nj * n_coefficients(H)
+        G = np.zeros(n * n)
+        G[tgt] = np.concatenate((Gr, Gi, -Gi, Gr[1:]), axis=None)
         return G.reshape(n, n)
 
     def condensed(self, omega, H):
@@ -652,7 +652,7 @@ class _Problem:
     def evaluate(self, z, w, jacobian=False):
         ev = self.e.evaluate(z, w, self.Fc, self.H, self.N, jacobian=True, domega=True, lazy=True)
         R = ev["R"]
-        err = float(np.linalg.norm(R) / max(np.linalg.norm(z), 1e-300))
+        err = math.sqrt(float(R @ R)) / max(math.sqrt(float(z @ z)), 1e-300)  # np.linalg.norm's sqrt(x . x)
         return {"R": R, "err": err, "z": z, "w": w, "ev": ev}
 
     def jacobian(self, ev, domega=True):

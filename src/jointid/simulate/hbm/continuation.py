@@ -237,7 +237,7 @@ def _step(arc, y, t, ds, hist_s, hist_y, extrapolate, cos_max, ds_min):
 
 def _accept(hist_s, hist_y, y, y_new, its, ds, ds_max):
     """The predictor history after accepting ``y_new`` and the next step length (by corrector iterations)."""
-    hist_s = (hist_s + [hist_s[-1] + float(np.linalg.norm(y_new - y))])[-CONT_HISTORY:]
+    hist_s = (hist_s + [hist_s[-1] + math.sqrt(float((y_new - y) @ (y_new - y)))])[-CONT_HISTORY:]
     hist_y = (hist_y + [y_new])[-CONT_HISTORY:]
     if its <= 2:
         ds = min(ds * 1.6, ds_max)
