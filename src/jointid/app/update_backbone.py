@@ -37,7 +37,8 @@ from ..errors import (
 from ..simulate.nlmodes import epmc_point
 from ..simulate.structure_hb import to_complex
 
-__all__ = ["BACKBONE_COLUMNS", "MeasuredBackbone", "backbone_response", "measured_kind", "read_measured_backbone"]
+__all__ = ["BACKBONE_COLUMNS", "FRF_COLUMNS", "MeasuredBackbone", "backbone_response", "dof_cell", "measured_kind",
+           "number_cell", "read_measured_backbone", "table_rows"]
 
 BACKBONE_COLUMNS = ("dof", "amplitude", "frequency_hz", "se_frequency_hz", "damping_ratio", "se_damping_ratio")
 FRF_COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
@@ -84,6 +85,36 @@ def read_rows(p, what="measured file"):
     return kept, rows
 
 
+def table_rows(p, what, columns, optional=""):
+    """``[(line number, row)]`` of a measured CSV file with every one of ``columns`` in its header;
+    :class:`ManifestError` for no rows or a missing column."""
+    kept, rows = read_rows(p, what)
+    if not rows:
+        raise ManifestError(f"{p}: no data rows")
+    missing = [c for c in columns if c not in rows[0]]
+    if missing:
+        raise ManifestError(f"{p}: missing column(s) {', '.join(missing)} (needs {', '.join(columns)}{optional})")
+    return [(i, r) for (i, _), r in zip(kept[1:], rows)]
+
+
+def number_cell(p, i, r, c) -> float:
+    """The finite number in column ``c`` of row ``r`` (line ``i`` of ``p``), or :class:`ManifestError`."""
+    try:
+        v = float(r[c])
+    except (TypeError, ValueError):
+        raise ManifestError(f"{p}: line {i}, column {c}: not a number ({r[c]!r})") from None
+    if not math.isfinite(v):
+        raise ManifestError(f"{p}: line {i}, column {c}: not finite")
+    return v
+
+
+def dof_cell(p, i, r) -> str:
+    d = (r["dof"] or "").strip()
+    if not d:
+        raise ManifestError(f"{p}: line {i}, column dof: empty")
+    return d
+
+
 def measured_kind(path) -> str:
     """``"frf"`` or ``"backbone"`` from a measured file's header columns; otherwise :class:`ManifestError`."""
     p = Path(path)
@@ -103,33 +134,19 @@ def measured_kind(path) -> str:
 def read_measured_backbone(path) -> MeasuredBackbone:
     """Read a BACKBONE.csv; bad input -> :class:`ManifestError` naming the file, line and column."""
     p = Path(path)
-    kept, rows = read_rows(p, "measured backbone file")
-    if not rows:
-        raise ManifestError(f"{p}: no data rows")
-    missing = [c for c in BACKBONE_COLUMNS if c not in rows[0]]
-    if missing:
-        raise ManifestError(f"{p}: missing column(s) {', '.join(missing)} (needs {', '.join(BACKBONE_COLUMNS)}"
-                            ", optional mode)")
     num = [c for c in BACKBONE_COLUMNS if c != "dof"]
     vals = {c: [] for c in num}
     dofs, modes, lines = [], [], []
-    for (i, _), r in zip(kept[1:], rows):
+    for i, r in table_rows(p, "measured backbone file", BACKBONE_COLUMNS, ", optional mode"):
         for c in num:
-            try:
-                v = float(r[c])
-            except (TypeError, ValueError):
-                raise ManifestError(f"{p}: line {i}, column {c}: not a number ({r[c]!r})") from None
-            if not math.isfinite(v):
-                raise ManifestError(f"{p}: line {i}, column {c}: not finite")
+            v = number_cell(p, i, r, c)
             if c == "damping_ratio" and v < 0:
                 raise ManifestError(f"{p}: line {i}, column {c}: negative ({v:g}); a free decay that grows is "
                                     "not a backbone point")
             if c != "damping_ratio" and v <= 0:
                 raise ManifestError(f"{p}: line {i}, column {c}: must be > 0, got {v:g}")
             vals[c].append(v)
-        d = (r["dof"] or "").strip()
-        if not d:
-            raise ManifestError(f"{p}: line {i}, column dof: empty")
+        d = dof_cell(p, i, r)
         m = (r.get("mode") or "1").strip()
         if not (m.isdigit() and int(m) >= 1):
             raise ManifestError(f"{p}: line {i}, column mode: expected a mode number 1, 2, ..., got {m!r}")

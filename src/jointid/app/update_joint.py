@@ -60,18 +60,20 @@ from ..simulate.structure import (
 from ..simulate.structure_hb import to_complex, warm_sweep
 from .structure_predict import located_peak
 from .update_backbone import (
+    FRF_COLUMNS,
     MeasuredBackbone,
     backbone_response,
     check_backbone,
+    dof_cell,
     measured_kind,
+    number_cell,
     read_measured_backbone,
-    read_rows,
+    table_rows,
 )
 
 __all__ = ["JointUpdate", "MeasuredBackbone", "MeasuredFRF", "read_measured", "read_measured_backbone",
            "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
 
-_COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
 #: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
 ADEQUATE_CHI2_PER_DOF = 4.0
 
@@ -99,29 +101,15 @@ class MeasuredFRF:
 def read_measured_frf(path) -> MeasuredFRF:
     """Read a MEASURED.csv; bad input -> :class:`ManifestError` naming the file, row and column."""
     p = Path(path)
-    kept, rows = read_rows(p, "measured first-harmonic file")
-    if not rows:
-        raise ManifestError(f"{p}: no data rows")
-    missing = [c for c in _COLUMNS if c not in rows[0]]
-    if missing:
-        raise ManifestError(f"{p}: missing column(s) {', '.join(missing)} (needs {', '.join(_COLUMNS)})")
-    vals = {c: [] for c in _COLUMNS if c != "dof"}
+    vals = {c: [] for c in FRF_COLUMNS if c != "dof"}
     dofs = []
-    for (i, _), r in zip(kept[1:], rows):  # i: the line of the file
+    for i, r in table_rows(p, "measured first-harmonic file", FRF_COLUMNS):  # i: the line of the file
         for c, col in vals.items():
-            try:
-                v = float(r[c])
-            except (TypeError, ValueError):
-                raise ManifestError(f"{p}: line {i}, column {c}: not a number ({r[c]!r})") from None
-            if not math.isfinite(v):
-                raise ManifestError(f"{p}: line {i}, column {c}: not finite")
+            v = number_cell(p, i, r, c)
             if c in ("force_level", "frequency_hz", "se") and v <= 0:
                 raise ManifestError(f"{p}: line {i}, column {c}: must be > 0, got {v:g}")
             col.append(v)
-        d = (r["dof"] or "").strip()
-        if not d:
-            raise ManifestError(f"{p}: line {i}, column dof: empty")
-        dofs.append(d)
+        dofs.append(dof_cell(p, i, r))
     a1, b1 = np.array(vals["a1"]), np.array(vals["b1"])
     return MeasuredFRF(str(p), np.array(vals["force_level"]), np.array(vals["frequency_hz"]), tuple(dofs),
                        a1 - 1j * b1, np.array(vals["se"]))
