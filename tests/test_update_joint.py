@@ -33,14 +33,13 @@ FREQS = np.linspace(21.8, 25.0, 13)
 NOISE = 0.005
 
 
-def write_model(folder):
+def write_model(folder, law='law = "jenkins"\nparameters = { kt = 1.0e4, Fs = 5.0 }', zeta=0.01, name="two"):
     M = np.diag([1.0, 0.5])
     K = np.array([[6e4, -2e4], [-2e4, 2e4]])
     np.savez(folder / "two.npz", M=M, K=K, dof_names=np.array(["x1", "x2"]))
-    path = folder / "two.toml"
-    path.write_text('[model]\nname = "two masses"\n[matrices]\nfile = "two.npz"\n[damping]\nmodal = 0.01\n'
-                    '[[joint]]\nname = "slip"\ndofs = ["x1"]\nlaw = "jenkins"\n'
-                    'parameters = { kt = 1.0e4, Fs = 5.0 }\nk_model = 0\n'
+    path = folder / f"{name}.toml"
+    path.write_text(f'[model]\nname = "two masses"\n[matrices]\nfile = "two.npz"\n[damping]\nmodal = {zeta}\n'
+                    f'[[joint]]\nname = "slip"\ndofs = ["x1"]\n{law}\nk_model = 0\n'
                     '[force]\ndofs = { "x2" = 1.0 }\n[response]\ndofs = ["x2"]\n')
     return path
 
@@ -237,14 +236,7 @@ def test_shipped_lap_example_is_what_its_generator_writes(tmp_path):
 def test_a_polynomial_joint_law_is_updated_by_its_coefficient_names(tmp_path):
     """A cubic spring with viscous damping in the joint: ``k3`` and ``c`` (the names of the law's
     ``parameters``) fitted to first harmonics of the true model at 27 harmonics, 0.5 % noise."""
-    M = np.diag([1.0, 0.5])
-    K = np.array([[6e4, -2e4], [-2e4, 2e4]])
-    np.savez(tmp_path / "two.npz", M=M, K=K, dof_names=np.array(["x1", "x2"]))
-    model = tmp_path / "cubic.toml"
-    model.write_text('[model]\nname = "two masses, cubic joint"\n[matrices]\nfile = "two.npz"\n[damping]\n'
-                     'modal = 0.002\n[[joint]]\nname = "cubic"\ndofs = ["x1"]\nlaw = "polynomial"\n'
-                     'parameters = { "-q^3" = -5.0e10, "q\'" = 4.0 }\nk_model = 0\n'
-                     '[force]\ndofs = { "x2" = 1.0 }\n[response]\ndofs = ["x2"]\n')
+    model = write_model(tmp_path, 'law = "polynomial"\nparameters = { "-q^3" = -5.0e10, "q\'" = 4.0 }', 0.002, "cubic")
     truth = {"k3": -8.0e10, "c": 6.0}
     m, _ = structure_from_spec(read_structure_model(model))
     mt = _with_law(m, 0, m.joints[0].law.replace(**truth))
