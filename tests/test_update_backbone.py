@@ -178,6 +178,24 @@ def test_dof_amplitude_is_matched_not_the_modal_one(model):
     assert f[1] != pytest.approx(pt.frequency_hz, rel=1e-12)  # ... so the matched point differs
 
 
+def test_the_figure_curve_is_the_model_between_the_points(model):
+    """``backbone_curve``: the nonlinear mode on a grid from the smallest to the largest measured amplitude
+    (its ends are the model at those points); a file of two DOFs gets no curve (the figure joins the points)."""
+    m, _ = structure_from_spec(read_structure_model(model))
+    amp = np.array([3e-4, 8e-4, 5e-3])
+    bb = update_backbone.MeasuredBackbone("b.csv", ("x2",) * 3, np.ones(3, int), amp, np.ones(3), np.ones(3),
+                                          np.ones(3), np.ones(3), np.arange(2, 5))
+    a, f, z = update_backbone.backbone_curve(m, bb, n_points=12)
+    fp, zp = update_backbone.backbone_response(m, bb)
+    assert a.size == 12 and a[0] == pytest.approx(amp[0]) and a[-1] == pytest.approx(amp[-1])
+    # (solved from other neighbours: equal to the solver tolerance)
+    np.testing.assert_allclose([f[0], f[-1], z[0], z[-1]], [fp[0], fp[-1], zp[0], zp[-1]], rtol=1e-7)
+    assert np.all(np.diff(f) <= 1e-12)  # a Jenkins joint softens with amplitude
+    two = update_backbone.MeasuredBackbone("b.csv", ("x1", "x2"), np.ones(2, int), amp[:2], np.ones(2), np.ones(2),
+                                           np.ones(2), np.ones(2), np.arange(2, 4))
+    assert update_backbone.backbone_curve(m, two) is None
+
+
 def test_shipped_backbone_example_reads():
     _, (bb,) = read_measured([REPO / "examples" / "two_mass_backbone.csv"])
     assert bb.n >= 10 and set(bb.dof) == {"x2"} and set(bb.mode.tolist()) == {1}

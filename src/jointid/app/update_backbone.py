@@ -37,8 +37,8 @@ from ..errors import (
 from ..simulate.nlmodes import epmc_point
 from ..simulate.structure_hb import to_complex
 
-__all__ = ["BACKBONE_COLUMNS", "FRF_COLUMNS", "MeasuredBackbone", "backbone_response", "dof_cell", "measured_kind",
-           "number_cell", "read_measured_backbone", "table_rows"]
+__all__ = ["BACKBONE_COLUMNS", "FRF_COLUMNS", "MeasuredBackbone", "backbone_curve", "backbone_response", "dof_cell",
+           "measured_kind", "number_cell", "read_measured_backbone", "table_rows"]
 
 BACKBONE_COLUMNS = ("dof", "amplitude", "frequency_hz", "se_frequency_hz", "damping_ratio", "se_damping_ratio")
 FRF_COLUMNS = ("force_level", "frequency_hz", "dof", "a1", "b1", "se")
@@ -206,3 +206,22 @@ def backbone_response(model, bb: MeasuredBackbone, n_harmonics=9, n_time=None, r
             f[i] = pt.frequency_hz
             z[i] = pt.damping_ratio
     return f, z
+
+
+def backbone_curve(model, bb: MeasuredBackbone, n_harmonics=9, n_points=40):
+    """The model's nonlinear mode on a fine grid between the smallest and largest amplitude of ``bb``,
+    for a figure: ``(amplitude, frequency_hz, damping_ratio)``; None for a file of several DOFs or
+    modes, or when a grid point cannot be solved (the figure then joins the model's values at the
+    measured points)."""
+    if len(set(zip(bb.dof, bb.mode.tolist()))) != 1:
+        return None
+    dof, mode = bb.dof[0], int(bb.mode[0])
+    amp = np.geomspace(bb.amplitude.min(), bb.amplitude.max(), n_points)
+    ones = np.ones(n_points)
+    grid = MeasuredBackbone(bb.path, (dof,) * n_points, np.full(n_points, mode), amp, ones, ones, ones, ones,
+                            np.zeros(n_points, int))
+    try:
+        f, z = backbone_response(model, grid, n_harmonics)
+    except (ConvergenceError, StructureError):
+        return None
+    return amp, f, z

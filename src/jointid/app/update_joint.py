@@ -62,6 +62,7 @@ from .structure_predict import located_peak
 from .update_backbone import (
     FRF_COLUMNS,
     MeasuredBackbone,
+    backbone_curve,
     backbone_response,
     check_backbone,
     dof_cell,
@@ -554,7 +555,10 @@ def write_update(result: JointUpdate, out, inputs=()) -> dict:
                                   response_units=read_structure_model(result.model_path).response_units)
             paths["figure"] = atomic_write(tmp / "figures" / "update_fit.png", figure_to_png(fig, dpi=110))
         if result.fitted.get("backbones"):
-            fig = plot_update_backbone(result.fitted["backbones"], joint=result.joint, law=result.law)
+            fig = plot_update_backbone(result.fitted["backbones"], joint=result.joint, law=result.law,
+                                       curves=[backbone_curve(result.fitted["structure"], bb, result.n_harmonics)
+                                               for bb, _ in result.fitted["backbones"]],
+                                       response_units=read_structure_model(result.model_path).response_units)
             paths["backbone_figure"] = atomic_write(tmp / "figures" / "update_backbone.png",
                                                     figure_to_png(fig, dpi=110))
     return paths

@@ -127,30 +127,38 @@ def plot_update_fit(measured, model, *, joint, law, response_units=None):
     return fig
 
 
-def plot_update_backbone(backbones, *, joint, law):
-    """Measured backbones (± 1.96 standard errors) and the updated model's nonlinear mode at their points.
+def plot_update_backbone(backbones, *, joint, law, curves=None, response_units=None):
+    """Measured backbones (± 1.96 standard errors) and the updated model's nonlinear mode.
 
     Parameters
     ----------
     backbones : sequence of (MeasuredBackbone, (frequency_hz, damping_ratio))
-        Each measured backbone (``path``, ``amplitude``, ``frequency_hz``, ``se_frequency_hz``,
+        Each measured backbone (``path``, ``dof``, ``amplitude``, ``frequency_hz``, ``se_frequency_hz``,
         ``damping_ratio``, ``se_damping_ratio``) with the model's values at its points.
     joint, law : str
         Named in the title.
+    curves : sequence, optional
+        Per backbone, ``(amplitude, frequency_hz, damping_ratio)`` of the model on a fine grid of
+        amplitudes (drawn as its line; without it, the line joins the model's values at the points).
+    response_units : mapping, optional
+        Unit of each DOF's motion (``m`` where not given), for the amplitude axis.
 
     Returns
     -------
     Figure
     """
+    units_of = dict(response_units or {})
     fig = ReportFigure(figsize=(7, 5.2))
     axf, axz = fig.subplots(2, 1, sharex=True)
-    for bb, (f, z) in backbones:
+    curves = list(curves) if curves is not None else [None] * len(backbones)
+    for (bb, (f, z)), curve in zip(backbones, curves):
         o = np.argsort(bb.amplitude)
+        a_line, f_line, z_line = (bb.amplitude[o], np.asarray(f)[o], np.asarray(z)[o]) if curve is None else curve
         name = str(bb.path).replace("\\", "/").rsplit("/", 1)[-1]
-        line, = axf.plot(bb.amplitude[o], np.asarray(f)[o], "-", lw=1.1, label=f"{name}: fitted")
+        line, = axf.plot(a_line, f_line, "-", lw=1.1, label=f"{name}: fitted")
         axf.errorbar(bb.amplitude[o], bb.frequency_hz[o], yerr=1.96 * bb.se_frequency_hz[o], fmt="o", ms=3,
                      color=line.get_color())
-        axz.plot(bb.amplitude[o], 100 * np.asarray(z)[o], "-", lw=1.1, color=line.get_color())
+        axz.plot(a_line, 100 * np.asarray(z_line), "-", lw=1.1, color=line.get_color())
         axz.errorbar(bb.amplitude[o], 100 * bb.damping_ratio[o], yerr=196 * bb.se_damping_ratio[o], fmt="o", ms=3,
                      color=line.get_color())
     from matplotlib.ticker import NullFormatter
@@ -159,7 +167,9 @@ def plot_update_backbone(backbones, *, joint, law):
     axz.xaxis.set_minor_formatter(NullFormatter())  # the minor labels of a short log axis overlap
     axf.set_ylabel("natural frequency [Hz]")
     axz.set_ylabel("damping ratio [%]")
-    axz.set_xlabel("first-harmonic amplitude at the DOF")
+    dofs = sorted({d for bb, _ in backbones for d in bb.dof})
+    units = sorted({units_of.get(d, "m") for d in dofs})
+    axz.set_xlabel(f"first-harmonic amplitude of {', '.join(dofs)} [{', '.join(units)}]")
     axf.set_title(f"{joint}: updated {law}, backbone (dots: measured, 95 %)")
     axf.legend(fontsize=8)
     for ax in (axf, axz):
