@@ -82,3 +82,12 @@ def test_band_limited_standard_errors_are_calibrated():
     ok = ~mis
     assert 0.8 < np.std(zf[ok]) < 1.25 and 0.8 < np.std(zz[ok]) < 1.25, (np.std(zf[ok]), np.std(zz[ok]))
     assert np.max(np.abs(zf[mis])) < 3 and np.max(np.abs(zz[mis])) < 3
+
+
+def test_a_decay_whose_first_window_fits_nothing_is_a_record_error(monkeypatch):
+    import jointid.signal.ringdown as rd
+
+    t, x, _ = _impact(noise=0.05)
+    monkeypatch.setattr(rd, "_fit_window", lambda *a, **k: (np.full(5, np.nan), np.eye(5), 1.0, 1.0, 1.0))
+    with pytest.raises(RecordError, match="fits no decaying oscillation"):
+        rd.fit_decay(t, x, frequency_hz=80.0, n_cycles=16, hop_cycles=8)

@@ -98,6 +98,16 @@ def test_frf_and_backbone_stacked_and_the_backbone_predicted(decay, model, tmp_p
     assert "backbone held out" in r.report()
 
 
+def test_too_few_frf_points_for_the_held_out_fit_are_said_not_raised(decay, model, tmp_path):
+    """One dwell (two residuals) cannot fit three parameters without the backbone: the held-out check says so."""
+    bbp = tb.write_backbone(tmp_path / "bb.csv", tb.backbone_rows(*decay, rng=8))
+    frf = tmp_path / "frf.csv"
+    frf.write_text(_frf_points(model, freqs=FRF_FREQS[:1]))
+    res = update_joint(model, [frf, bbp], parameters=["kt", "Fs", "zeta_1"]).summary()
+    assert "too few FRF points" in res["heldout_backbone"]["note"]
+    assert all(math.isfinite(v) for v in res["parameters"].values())
+
+
 def test_cli_on_the_shipped_example(tmp_path, capsys):
     model = tmp_path / "two_mass.toml"
     model.write_text(tb.MODEL_TOML)
@@ -126,6 +136,7 @@ def test_lower_half_predicts_the_upper_half_or_says_it_cannot(decay, model, tmp_
     ("dof,amplitude,frequency_hz,se_frequency_hz,damping_ratio\nx2,1e-3,23,0.01,0.002\n",
      "missing column(s) se_damping_ratio"),
     (HEAD + "\nx2,1e-3,23,0.01,-0.002,1e-4\n", "line 2, column damping_ratio: negative"),
+    (HEAD + "\nx2,1e-3,23,0.01,0,1e-4\n", "line 2, column damping_ratio: zero"),
     (HEAD + "\n# c\nx2,nan,23,0.01,0.002,1e-4\n", "line 3, column amplitude: not finite"),
     (HEAD + "\nx2,1e-3,23,0,0.002,1e-4\n", "line 2, column se_frequency_hz: must be > 0"),
     (HEAD + ",mode\nx2,1e-3,23,0.01,0.002,1e-4,0\n", "line 2, column mode: expected a mode number"),

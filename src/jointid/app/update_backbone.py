@@ -63,6 +63,12 @@ class MeasuredBackbone:
     def n(self) -> int:
         return int(self.amplitude.size)
 
+    def z_scores(self, f, z):
+        """``(z_f, z_zeta)``: model frequencies ``f`` and damping ratios ``z`` less the measured ones, over
+        their standard errors."""
+        return (np.asarray(f) - self.frequency_hz) / self.se_frequency_hz, \
+            (np.asarray(z) - self.damping_ratio) / self.se_damping_ratio
+
     def subset(self, mask):
         m = np.asarray(mask, bool)
         return MeasuredBackbone(self.path, tuple(d for d, k in zip(self.dof, m) if k), self.mode[m],
@@ -140,10 +146,10 @@ def read_measured_backbone(path) -> MeasuredBackbone:
     for i, r in table_rows(p, "measured backbone file", BACKBONE_COLUMNS, ", optional mode"):
         for c in num:
             v = number_cell(p, i, r, c)
-            if c == "damping_ratio" and v < 0:
-                raise ManifestError(f"{p}: line {i}, column {c}: negative ({v:g}); a free decay that grows is "
-                                    "not a backbone point")
-            if c != "damping_ratio" and v <= 0:
+            if c == "damping_ratio" and v <= 0:
+                raise ManifestError(f"{p}: line {i}, column {c}: {'zero' if v == 0 else f'negative ({v:g})'}; a "
+                                    "motion that does not decay is not a backbone point of a free decay")
+            if v <= 0:
                 raise ManifestError(f"{p}: line {i}, column {c}: must be > 0, got {v:g}")
             vals[c].append(v)
         d = dof_cell(p, i, r)
@@ -208,7 +214,7 @@ def backbone_response(model, bb: MeasuredBackbone, n_harmonics=9, n_time=None, r
     return f, z
 
 
-def backbone_curve(model, bb: MeasuredBackbone, n_harmonics=9, n_points=40):
+def backbone_curve(model, bb: MeasuredBackbone, n_harmonics=9, n_time=None, n_points=40):
     """The model's nonlinear mode on a fine grid between the smallest and largest amplitude of ``bb``,
     for a figure: ``(amplitude, frequency_hz, damping_ratio)``; None for a file of several DOFs or
     modes, or when a grid point cannot be solved (the figure then joins the model's values at the
@@ -221,7 +227,7 @@ def backbone_curve(model, bb: MeasuredBackbone, n_harmonics=9, n_points=40):
     grid = MeasuredBackbone(bb.path, (dof,) * n_points, np.full(n_points, mode), amp, ones, ones, ones, ones,
                             np.zeros(n_points, int))
     try:
-        f, z = backbone_response(model, grid, n_harmonics)
+        f, z = backbone_response(model, grid, n_harmonics, n_time)
     except (ConvergenceError, StructureError):
         return None
     return amp, f, z

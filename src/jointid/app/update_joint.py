@@ -75,6 +75,8 @@ from .update_backbone import (
 __all__ = ["JointUpdate", "MeasuredBackbone", "MeasuredFRF", "read_measured", "read_measured_backbone",
            "read_measured_frf", "update_joint", "update_structure_joint", "write_update"]
 
+#: Weighted residual of every point where the model cannot be solved (steers the fit away from there).
+_FAILED = 1e6
 #: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
 ADEQUATE_CHI2_PER_DOF = 4.0
 
@@ -193,9 +195,9 @@ class _Fitter:
                 d = (self.responses(theta, meas) - meas.X) / meas.se
                 parts += [d.real, d.imag]
             for bb, (f, z) in zip(bbs, self.backbones(theta, bbs)):
-                parts += [(f - bb.frequency_hz) / bb.se_frequency_hz, (z - bb.damping_ratio) / bb.se_damping_ratio]
+                parts += list(bb.z_scores(f, z))
         except (ConvergenceError, StructureError):  # no steady state, or a step outside the law's bounds
-            return np.full(n, 1e6)
+            return np.full(n, _FAILED)
         return np.concatenate(parts)
 
     def fit(self, meas, theta0=None, bbs=()):
@@ -359,14 +361,23 @@ def _backbone_points(bb, f, z):
                                                              bb.se_damping_ratio, f, z)]
 
 
+def _lower_half(bb):
+    """Points of ``bb`` at or below the median amplitude of their own DOF and mode."""
+    keys = list(zip(bb.dof, bb.mode.tolist()))
+    med = {k: np.median([a for kk, a in zip(keys, bb.amplitude) if kk == k]) for k in set(keys)}
+    return np.array([a <= med[k] for k, a in zip(keys, bb.amplitude)])
+
+
 def _heldout_backbone(fitter, meas, bbs, n_par):
     """The backbones predicted by a fit that has not seen them (FRF points only), or, without FRF points,
     the upper half of each backbone's amplitudes predicted from the lower half."""
     if meas is not None:
         how, fit_bbs, test_bbs = "fitted to the FRF points only, the backbones predicted", (), list(bbs)
+        if 2 * meas.X.size <= n_par:
+            return {"how": how, "note": "too few FRF points to fit the parameters without the backbones"}
     else:
         how = "fitted to the lower half of each backbone's amplitudes, the upper half predicted"
-        lows = [bb.amplitude <= np.median(bb.amplitude) for bb in bbs]
+        lows = [_lower_half(bb) for bb in bbs]
         fit_bbs = [bb.subset(lo) for bb, lo in zip(bbs, lows)]
         test_bbs = [bb.subset(~lo) for bb, lo in zip(bbs, lows)]
         fit_bbs = [b for b in fit_bbs if b.n]
@@ -376,6 +387,9 @@ def _heldout_backbone(fitter, meas, bbs, n_par):
     out = {"how": how, "parameters": None, "note": ""}
     try:  # from the model file's start, not the full fit's estimate: what the points kept determine
         sol = fitter.fit(meas, bbs=fit_bbs)
+        if np.all(sol.fun == _FAILED):
+            out["note"] = "the fit without the held-out points found no parameters where the model can be solved"
+            return out
         out["parameters"] = {k: float(v) for k, v in fitter._values(sol.x).items()}
         pred = fitter.backbones(sol.x, test_bbs)
     except (ConvergenceError, StructureError) as exc:
@@ -384,8 +398,7 @@ def _heldout_backbone(fitter, meas, bbs, n_par):
     sv = np.linalg.svd(sol.jac, compute_uv=False)
     if sv[-1] <= 1e-8 * sv[0]:
         out["note"] = "the points kept do not determine every parameter (singular Jacobian): the prediction is weak"
-    zf = np.concatenate([(f - b.frequency_hz) / b.se_frequency_hz for b, (f, _) in zip(test_bbs, pred)])
-    zz = np.concatenate([(z - b.damping_ratio) / b.se_damping_ratio for b, (_, z) in zip(test_bbs, pred)])
+    zf, zz = (np.concatenate(v) for v in zip(*(b.z_scores(f, z) for b, (f, z) in zip(test_bbs, pred))))
     ef = np.concatenate([100 * (f / b.frequency_hz - 1) for b, (f, _) in zip(test_bbs, pred)])
     ez = np.concatenate([100 * (z / b.damping_ratio - 1) for b, (_, z) in zip(test_bbs, pred)])
     out.update(n_points=int(zf.size), rms_z_frequency=float(np.sqrt(np.mean(zf ** 2))),
@@ -521,12 +534,11 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
                       {k: units.get(k, "") for k in names}, fitter.start, est, se, ci, dict(zip(names, fitter.log)),
                       chi2, dof, bool(scaled), corr, int(n_frf), int(n_harmonics), int(sol.nfev), warnings=warn)
     res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas) if meas is not None else None,
-                  "structure": fitter.structure(sol.x)}
+                  "structure": fitter.structure(sol.x), "n_time": n_time}
     fb = fitter.backbones(sol.x, bbs)
     res.fitted["backbones"] = list(zip(bbs, fb))
     for bb, (f, z) in zip(bbs, fb):
-        c2 = float(np.sum(((f - bb.frequency_hz) / bb.se_frequency_hz) ** 2
-                          + ((z - bb.damping_ratio) / bb.se_damping_ratio) ** 2))
+        c2 = float(sum(np.sum(v**2) for v in bb.z_scores(f, z)))
         res.backbones.append({"file": bb.path, "n_points": bb.n, "chi2": c2, "points": _backbone_points(bb, f, z)})
     if heldout and meas is not None and len(meas.levels()) >= 2:
         for lv in meas.levels():
@@ -556,7 +568,8 @@ def write_update(result: JointUpdate, out, inputs=()) -> dict:
             paths["figure"] = atomic_write(tmp / "figures" / "update_fit.png", figure_to_png(fig, dpi=110))
         if result.fitted.get("backbones"):
             fig = plot_update_backbone(result.fitted["backbones"], joint=result.joint, law=result.law,
-                                       curves=[backbone_curve(result.fitted["structure"], bb, result.n_harmonics)
+                                       curves=[backbone_curve(result.fitted["structure"], bb, result.n_harmonics,
+                                                              result.fitted.get("n_time"))
                                                for bb, _ in result.fitted["backbones"]],
                                        response_units=read_structure_model(result.model_path).response_units)
             paths["backbone_figure"] = atomic_write(tmp / "figures" / "update_backbone.png",

@@ -260,16 +260,20 @@ def _fast_ok(u, du, x, phi_max):
 
 
 _EPS8 = 8.0 * float(np.finfo(float).eps)
-_CP = [None, None]  # the last projection and its cumulative column sums
+_CP = (None, None)  # the last projection and its cumulative column sums
 
 
 def _cum_projection(P):
-    """``CPT[j] = sum_{t < j} P[:, t]`` (n + 1, c), rows contiguous; cached for the last ``P``."""
-    if _CP[0] is not P:
-        CPT = np.zeros((P.shape[1] + 1, P.shape[0]))
-        np.cumsum(P.T, axis=0, out=CPT[1:])
-        _CP[:] = [P, CPT]
-    return _CP[1]
+    """``CPT[j] = sum_{t < j} P[:, t]`` (n + 1, c), rows contiguous; cached for the last ``P`` (one
+    tuple read and one rebinding: threads of one process never get another projection's sums)."""
+    global _CP
+    last = _CP
+    if last[0] is P:
+        return last[1]
+    CPT = np.zeros((P.shape[1] + 1, P.shape[0]))
+    np.cumsum(P.T, axis=0, out=CPT[1:])
+    _CP = (P, CPT)
+    return CPT
 
 
 def _onsets(us, S, phi, sgn):

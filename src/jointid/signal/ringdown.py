@@ -410,6 +410,9 @@ def fit_decay(t, x, *, kind="acceleration", frequency_hz=None, n_cycles=24.0, ho
         fits.append((rss, trace, nu))
         windows.append((i0, i1))
         errs.append(np.sqrt(rss / max(i1 - i0 - 5, 1)) / max(np.hypot(coef[0], coef[1]), 1e-300))
+    if not fits:
+        raise RecordError(f"channel {channel!r}: not a usable free decay: the first window of {n_cycles:g} periods "
+                          f"of {f0:.4g} Hz fits no decaying oscillation")
     rss, trace, nu = (np.array(v) for v in zip(*fits))
     s2, misfit = _noise_scale(rss, trace, nu, acf is not None)
     covs = [c * v for c, v in zip(covs, s2)]
