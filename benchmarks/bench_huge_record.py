@@ -23,11 +23,18 @@ from pathlib import Path
 
 import numpy as np
 
+#: The subprocess's own peak resident memory is its VmHWM: ``ru_maxrss`` after a fork and exec also holds
+#: the parent's resident size at the fork.
 RUN = """
 import json, resource, sys
 from jointid.cli import main
 rc = main(["identify", sys.argv[1], "--out", sys.argv[2], "--quiet"])
-print(json.dumps({"rc": rc, "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}))
+try:
+    with open("/proc/self/status") as fh:
+        peak = next(float(line.split()[1]) for line in fh if line.startswith("VmHWM:")) / 1024.0
+except (OSError, StopIteration):
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+print(json.dumps({"rc": rc, "peak_mib": peak}))
 """
 
 

@@ -60,7 +60,13 @@ def plan(campaigns: int) -> dict:
 
 
 def _peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kB
+    """Peak resident memory of this process (VmHWM; ``ru_maxrss`` would also hold the resident size of the
+    process a worker was forked from)."""
+    try:
+        with open("/proc/self/status") as fh:
+            return next(float(line.split()[1]) for line in fh if line.startswith("VmHWM:")) / 1024.0
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB elsewhere too (not on macOS)
 
 
 def _cpu_s() -> float:

@@ -3,7 +3,7 @@
 (The slow test measures 500 and 2,000 records and extrapolates the slope to 10,000.)
 
 The campaign is written and identified in a subprocess whose peak resident set size
-(``resource.getrusage``) is reported and bounded: the chain keeps per-record state
+(``VmHWM``, tests/memory_probe.py) is reported and bounded: the chain keeps per-record state
 signals and fits, the pooled fits work group by group, and the figures are capped.
 """
 
@@ -15,10 +15,11 @@ import sys
 import textwrap
 
 import pytest
+from memory_probe import PEAK_MIB
 
-SCRIPT = textwrap.dedent(
+SCRIPT = PEAK_MIB + textwrap.dedent(
     """
-    import json, resource, sys, time, warnings
+    import json, sys, time, warnings
     from pathlib import Path
     import numpy as np
     from jointid.io.campaign import write_campaign
@@ -46,7 +47,7 @@ SCRIPT = textwrap.dedent(
                    comments="")
         entries.append({"file": rel, "frequency_hz": w / (2 * np.pi), "force_level": float(g + 1), "preload": 1})
     write_campaign(folder, "many records", entries)
-    rss_written = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    rss_written = peak_mib()
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -54,8 +55,7 @@ SCRIPT = textwrap.dedent(
     elapsed = time.perf_counter() - start
     from jointid.report.output import write_results
     write_results(res, folder.parent / "out", figures=True)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux
-    print(json.dumps({"peak_rss_mib": peak / 1024, "rss_after_writing_mib": rss_written / 1024,
+    print(json.dumps({"peak_rss_mib": peak_mib(), "rss_after_writing_mib": rss_written,
                       "seconds": elapsed, "ok": sum(r.ok for r in res.records),
                       "usable": sum(r.usable for r in res.records),
                       "omega1": [g.pooled.omega1 for g in res.groups]}))
