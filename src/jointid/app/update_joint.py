@@ -161,11 +161,12 @@ class _Fitter:
         zeta = {_zeta_mode(k): v for k, v in self._values(theta).items() if _zeta_mode(k) is not None}
         return _with_law(self.model, self.j, self.law(theta), zeta)
 
-    def responses(self, theta, meas: MeasuredFRF):
+    def responses(self, theta, meas: MeasuredFRF, m=None):
         """Model first harmonics at the measured points: per level, its dwells (runs of one frequency in
         file order: the sensors of one dwell share one solve) swept in order, each started from its
-        predecessors (:func:`jointid.simulate.structure_hb.warm_sweep`)."""
-        m = self.structure(theta)
+        predecessors (:func:`jointid.simulate.structure_hb.warm_sweep`).  ``m``: the structure at
+        ``theta`` when the caller has it."""
+        m = self.structure(theta) if m is None else m
         out = np.empty(meas.X.size, complex)
         for lv in meas.levels():
             idx = np.flatnonzero(meas.force_level == lv)
@@ -178,11 +179,11 @@ class _Fitter:
                 out[i] = to_complex(m.modal.shape(meas.dof[i]) @ pts[k].modal)[1]
         return out
 
-    def backbones(self, theta, bbs):
+    def backbones(self, theta, bbs, m=None):
         """Model ``(frequency [Hz], damping ratio)`` at the points of each measured backbone."""
         if not bbs:
             return []
-        m = self.structure(theta)
+        m = self.structure(theta) if m is None else m
         return [backbone_response(m, bb, self.H, self.N) for bb in bbs]
 
     def residual(self, theta, meas, bbs=()):
@@ -191,10 +192,11 @@ class _Fitter:
         n = (2 * meas.X.size if meas is not None else 0) + sum(2 * bb.n for bb in bbs)
         parts = []
         try:
+            m = self.structure(theta)  # one structure for both kinds of points
             if meas is not None:
-                d = (self.responses(theta, meas) - meas.X) / meas.se
+                d = (self.responses(theta, meas, m) - meas.X) / meas.se
                 parts += [d.real, d.imag]
-            for bb, (f, z) in zip(bbs, self.backbones(theta, bbs)):
+            for bb, (f, z) in zip(bbs, self.backbones(theta, bbs, m)):
                 parts += list(bb.z_scores(f, z))
         except (ConvergenceError, StructureError):  # no steady state, or a step outside the law's bounds
             return np.full(n, _FAILED)
@@ -493,11 +495,11 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
         raise ManifestError(f"{exc} at the starting parameters of {source}") from None
     except Exception as exc:  # noqa: BLE001 - as below
         raise ManifestError(f"{source}: cannot evaluate the model at its starting parameters ({exc})") from None
-    try:
-        r0 = fitter.residual(fitter.theta0, meas, bbs)
+    try:  # the first harmonics at the start (the backbones were just solved there)
+        r0 = fitter.residual(fitter.theta0, meas) if meas is not None else None
     except Exception as exc:  # noqa: BLE001 - a law rejecting its own start is a bad model file
         raise ManifestError(f"{source}: cannot evaluate the model at its starting parameters ({exc})") from None
-    if np.all(r0 == 1e6):
+    if r0 is not None and np.all(r0 == _FAILED):
         raise IdentificationError(f"{', '.join(paths)}: the harmonic balance does not converge at the starting "
                                   "parameters")
     sol = fitter.fit(meas, bbs=bbs)
@@ -505,7 +507,7 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
     if not sol.success:
         warn.append(f"least squares stopped: {sol.message}")
     chi2 = float(np.sum(sol.fun ** 2))
-    if np.any(sol.fun == 1e6):
+    if np.any(sol.fun == _FAILED):
         raise IdentificationError(f"{', '.join(paths)}: the harmonic balance failed at the fitted parameters")
     J = sol.jac
     try:
