@@ -551,7 +551,7 @@ def main(argv=None) -> int:
                 check_command_output(args.command, args.out, [getattr(args, k, None) for k in ("campaign", "plan", "description")])
             return COMMANDS[args.command](args)
         except KeyboardInterrupt as exc:  # a study's says what its folder holds
-            print(f"jointid {args.command}: interrupted; {exc or 'earlier results are left as they were'}", file=sys.stderr)
+            print(f"jointid {args.command}: interrupted; {str(exc) or 'earlier results are left as they were'}", file=sys.stderr)
             return EXIT_INTERRUPTED
         except ClusterLostError as exc:
             print(f"jointid {args.command}: incomplete: {exc}", file=sys.stderr)
@@ -570,13 +570,43 @@ def main(argv=None) -> int:
             return EXIT_INTERNAL
 
 
+def _redeliver_lost_interrupts() -> None:
+    """Make a Ctrl-C that lands where Python cannot raise it reach the command all the same.
+
+    A KeyboardInterrupt raised inside a weakref callback or a finaliser (run by the garbage
+    collector at an arbitrary point) cannot propagate: Python hands it to ``sys.unraisablehook``,
+    which prints "Exception ignored in ..." with a traceback, and the interrupt is lost (the
+    run goes on). This hook delivers it again to the main thread instead: a SIGINT made pending
+    a moment later from another thread (made pending at once, it would be raised inside the
+    hook itself), raised at the next point where the main thread checks for signals. Any other
+    unraisable exception goes to the previous hook.
+    """
+    import _thread
+    import threading
+
+    previous = sys.unraisablehook
+
+    def hook(unraisable):
+        if issubclass(unraisable.exc_type, KeyboardInterrupt):
+            timer = threading.Timer(0.01, _thread.interrupt_main, (signal.SIGINT,))
+            timer.daemon = True
+            timer.start()
+            return
+        previous(unraisable)
+
+    sys.unraisablehook = hook
+
+
 def entry() -> int:
     """The console command: :func:`main`, then a Ctrl-C during the interpreter's teardown is ignored.
 
     Once ``main`` has returned the work and its message are complete; a SIGINT arriving while
     Python shuts down (atexit handlers, module teardown, where the default action kills the
     process) would otherwise end it by the signal, or with a traceback, instead of its exit status.
+    A Ctrl-C that lands in a garbage-collector callback is delivered again
+    (:func:`_redeliver_lost_interrupts`).
     """
+    _redeliver_lost_interrupts()
     try:
         code = main()
     except KeyboardInterrupt:  # outside a command's own handling (its arguments, or after it returned)
