@@ -329,6 +329,22 @@ def _saved(key, value):
     return edit
 
 
+def _scaled_cov(r, diag=1.0, corner=None, correlation=None):
+    """The model's covariance with its first variance times ``diag``, its [0][1] entry alone set to
+    ``corner`` times the product of the two standard errors, or both off-diagonal [0][1] entries set to
+    ``correlation`` times it."""
+    import copy
+
+    C = copy.deepcopy(r["models"][0]["covariance"])
+    s01 = (C[0][0] * C[1][1]) ** 0.5
+    C[0][0] *= diag
+    if corner is not None:
+        C[0][1] = corner * s01
+    if correlation is not None:
+        C[0][1] = C[1][0] = correlation * s01
+    return C
+
+
 # name: (edit of the parsed results, pattern of the message: the JSON path of the bad entry)
 BACKBONE_CASES = {
     "list": (lambda r: [r], r"JSON object expected, got list"),
@@ -353,6 +369,14 @@ BACKBONE_CASES = {
     "terms_unknown": (_model("terms", ["q", "foo"]), r"models\[0\]\.terms"),
     "preload_list": (_model("preload", [1, 2]), r"models\[0\]\.preload"),
     "q_max_range_text": (_model("q_max_range", "wide"), r"models\[0\]\.q_max_range"),
+    "q_max_range_reversed": (lambda r: _model("q_max_range", r["models"][0]["q_max_range"][::-1])(r),
+                             r"models\[0\]\.q_max_range: .*0 < low <= high"),
+    "covariance_negative_variance": (lambda r: _model("covariance", _scaled_cov(r, diag=-1.0))(r),
+                                     r"models\[0\]\.covariance: the variance of omega1\^2 is negative"),
+    "covariance_not_symmetric": (lambda r: _model("covariance", _scaled_cov(r, corner=0.5))(r),
+                                 r"models\[0\]\.covariance: not symmetric"),
+    "covariance_not_positive": (lambda r: _model("covariance", _scaled_cov(r, correlation=1.5))(r),
+                                r"models\[0\]\.covariance: not positive semi-definite"),
     "backbones_text": (lambda r: {**r, "backbones": "x"}, r"backbones: a JSON object"),
     "preloads_text": (lambda r: {**r, "backbones": {"preloads": "abc"}}, r"backbones\.preloads: a list"),
     "preload_entry_number": (lambda r: {**r, "backbones": {"preloads": [5]}}, r"backbones\.preloads\[0\]"),
@@ -385,6 +409,65 @@ def test_backbone_of_the_untouched_results_is_drawn(results_json, tmp_path, caps
     path.write_text(json.dumps(results_json))
     code, err = _run(["backbone", path, "--out", tmp_path / "bb", "--quiet"], capsys)
     assert code == 0 and list((tmp_path / "bb").glob("backbone_*.png")), err
+
+
+def test_backbone_of_a_model_that_does_not_hold_exits_1_and_says_why(results_json, tmp_path, capsys):
+    """Negative damping (a joint feeding energy in) and omega1^2 <= 0 (no oscillation): the backbone
+    says what is wrong on stderr (also with --quiet) and exits 1; the measured points are still drawn."""
+    import copy
+
+    for edit, pattern in ((lambda p: p[:2] + [-0.08, 0.0, 0.0], r"model damping: the model's damping ratio is negative"),
+                          (lambda p: [-abs(p[0])] + p[1:], r"model: the model has no oscillation")):
+        r = copy.deepcopy(results_json)
+        assert r["models"][0]["parameter_names"][:3] == ["omega1^2", "k3", "c0"]
+        r["models"][0]["parameters"] = edit(r["models"][0]["parameters"])
+        path = tmp_path / "results.json"
+        path.write_text(json.dumps(r))
+        out = tmp_path / "bb"
+        code, err = _run(["backbone", path, "--out", out, "--quiet"], capsys)
+        assert code == 1 and re.search(pattern, err), err
+        assert (out / "backbones.json").is_file()
+
+
+def test_backbone_output_is_one_set_never_a_mix_nor_the_users_files(results_json, tmp_path, capsys):
+    """The backbone folder is an output set: a folder holding the user's files is refused (left as it
+    was), and a second run replaces the first as a whole (no figure of the first run stays)."""
+    import copy
+
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "backbone_simulated.png").write_text("my notes")
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(results_json))
+    code, err = _run(["backbone", path, "--out", user, "--quiet"], capsys)
+    assert code == 2 and str(user) in err and (user / "backbone_simulated.png").read_text() == "my notes", err
+
+    out = tmp_path / "bb"
+    assert _run(["backbone", path, "--out", out, "--quiet"], capsys)[0] == 0
+    first = sorted(p.name for p in out.iterdir())
+    other = copy.deepcopy(results_json)
+    for m in other["models"]:
+        m["preload"] = "other"
+    for e in other["backbones"]["preloads"]:
+        e["preload"] = "other"
+    path2 = tmp_path / "other.json"
+    path2.write_text(json.dumps(other))
+    assert _run(["backbone", path2, "--out", out, "--quiet"], capsys)[0] == 0
+    second = sorted(p.name for p in out.iterdir())
+    assert "backbone_other.png" in second and not set(first) & set(second) - {".jointid-run", "backbones.json"}
+    assert json.loads((out / "backbones.json").read_text())["preloads"][0]["preload"] == "other"
+
+
+def test_predict_refuses_a_model_without_oscillation(results_json, tmp_path, capsys):
+    import copy
+
+    r = copy.deepcopy(results_json)
+    r["models"][0]["parameters"][0] = -abs(r["models"][0]["parameters"][0])
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(r))
+    code, err = _run(["predict", path, "--force-levels", "1", "--out", tmp_path / "p", "--quiet"], capsys)
+    assert code == 2 and "omega1^2 = -" in err and "no oscillation" in err, err
+    assert not (tmp_path / "p").exists()
 
 
 def test_backbone_results_not_utf8(tmp_path, capsys):

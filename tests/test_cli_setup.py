@@ -157,7 +157,8 @@ def test_backbone_takes_a_results_folder_and_has_a_default_output(identified, tm
     res = root / "res-summary"
     assert main(["backbone", str(res), "--quiet"]) == EXIT_OK
     default = root / "res-summary-backbone"
-    assert sorted(p.suffix for p in default.iterdir()) == [".png"]
+    assert sorted(p.name for p in default.iterdir() if p.suffix != ".png") == [".jointid-run", "backbones.json"]
+    assert list(default.glob("backbone_*.png"))
     assert main(["backbone", str(res / "results.json"), "--out", str(tmp_path / "bb"), "--quiet"]) == EXIT_OK
     assert list((tmp_path / "bb").glob("backbone_*.png"))
     capsys.readouterr()

@@ -303,7 +303,8 @@ def _identify(args) -> int:
         channel_delay=_channel_delay(args.channel_delay), repredict=not args.no_reprediction,
     )
     n_groups = sum(g.pooled is not None for g in result.groups)
-    stage(f"identified {len(result.records)} records, {n_groups} groups, {len(result.models)} preload model(s): "
+    stage(result.stage_line() if hasattr(result, "stage_line") else  # a first-harmonic campaign says its own
+          f"identified {len(result.records)} records, {n_groups} groups, {len(result.models)} preload model(s): "
           "pooled fits, laws, adequacy, " + ("" if args.no_reprediction else "re-prediction by harmonic balance, ")
           + "backbones")
     level = "none" if args.no_figures else args.figures
@@ -362,6 +363,10 @@ def _study(args) -> int:
         print(res.report())
         print(f"\n{res.n_run} campaigns run, {len(res.campaigns) - res.n_run} already in {args.out}; "
               f"results written to {args.out}")
+    elif res.failed:  # quiet: the failures only (the first ten, as the report lists them)
+        print(f"jointid study: {len(res.failed)} of {len(res.campaigns)} campaigns failed", file=sys.stderr)
+        for c in res.failed[:10]:
+            print(f"  {c['error']}", file=sys.stderr)
     return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
@@ -448,11 +453,15 @@ def _backbone(args) -> int:
     from .app.backbones import backbones_from_results, write_backbone_figures
 
     bb = backbones_from_results(args.results, n_harmonics=args.harmonics)
-    paths = write_backbone_figures(bb, args.out)
+    paths = write_backbone_figures(bb, args.out, inputs=(args.results.parent,))
+    problems = [f"preload {p.preload}: {k}: {e}" for p in bb.preloads for k, e in p.errors.items()]
     if not args.quiet:
         print(bb.report())
-        print(f"\n{len(paths)} figure(s) written to {args.out}")
-    return EXIT_OK
+        print(f"\n{len(paths)} figure(s) and backbones.json written to {args.out}")
+    else:
+        for line in problems:
+            print(f"jointid backbone: {line}", file=sys.stderr)
+    return EXIT_PARTIAL if problems else EXIT_OK  # a model without a backbone, or one that does not hold
 
 
 def _predict(args) -> int:

@@ -420,9 +420,35 @@ def _check_model_entry(m, at):
             isinstance(row, list) and len(row) == n and all(_is_num(x, allow_null=True) for x in row) for row in cov)):
         shape = f"{len(cov)} rows" if isinstance(cov, list) else type(cov).__name__
         raise ManifestError(f"{at}.covariance: a {n} x {n} matrix of numbers (or null) expected, got {shape}")
+    if cov is not None:
+        _check_covariance(cov, f"{at}.covariance", m.get("parameter_names"))
     rng = m.get("q_max_range")
-    if rng is not None and not (isinstance(rng, list) and len(rng) == 2 and all(_is_num(x, allow_null=True) for x in rng)):
-        raise ManifestError(f"{at}.q_max_range: a pair [low, high] expected, got {_shown(rng)}")
+    if rng is not None and not (isinstance(rng, list) and len(rng) == 2 and all(_is_num(x, allow_null=True) for x in rng)
+                                and (None in rng or 0 < rng[0] <= rng[1])):
+        raise ManifestError(f"{at}.q_max_range: a pair [low, high] of amplitudes with 0 < low <= high expected, "
+                            f"got {_shown(rng)}")
+
+
+def _check_covariance(cov, at, names=None) -> None:
+    """A covariance matrix (its defined part): symmetric, no negative variance, positive semi-definite
+    to rounding; otherwise :class:`ManifestError` (its standard errors would be made up)."""
+    C = np.array([[np.nan if x is None else x for x in row] for row in cov], float)
+    if C.size == 0 or not np.all(np.isfinite(C)):
+        return  # undefined entries: the prediction gives no standard error (said there)
+    d = np.diag(C)
+    if np.any(d < 0):
+        k = int(np.argmin(d))
+        name = names[k] if isinstance(names, list) and k < len(names) else f"parameter {k}"
+        raise ManifestError(f"{at}: the variance of {name} is negative ({d[k]:.3g}): not a covariance matrix")
+    scale = max(float(d.max()), np.finfo(float).tiny)
+    if not np.allclose(C, C.T, rtol=1e-6, atol=1e-9 * scale):
+        raise ManifestError(f"{at}: not symmetric: not a covariance matrix")
+    s = np.sqrt(d)
+    s = np.where(s > 0, s, 1.0)
+    lam = np.linalg.eigvalsh(C / np.outer(s, s))  # the correlation matrix: a negative eigenvalue beyond rounding
+    if lam.min() < -1e-6 * max(lam.max(), 1.0):
+        raise ManifestError(f"{at}: not positive semi-definite (an eigenvalue of its correlation matrix is "
+                            f"{lam.min():.3g}): not a covariance matrix")
 
 
 def _check_label(v, at):
@@ -521,6 +547,9 @@ def backbones_from_results(results, n_points=40, n_harmonics=1) -> CampaignBackb
                 model_bb = preload_model_backbone(m, n_points=n_points, n_harmonics=n_harmonics, label=f"preload {p}")
             except JointidError as exc:
                 errors["model"] = str(exc)
+        neg = _negative_damping(model_bb)
+        if neg:
+            errors["model damping"] = neg
         e = saved.get(p) or {}
         pick = (lambda d: None if not d else Backbone.from_summary(d))
         out.append(PreloadBackbones(p, model_bb, pick(e.get("stepped_sine")), pick(e.get("phase_resonance")),
@@ -530,18 +559,41 @@ def backbones_from_results(results, n_points=40, n_harmonics=1) -> CampaignBackb
     return CampaignBackbones(tuple(out))
 
 
-def write_backbone_figures(backbones: CampaignBackbones, out_dir) -> list:
-    """One PNG per preload (``backbone_<preload>.png``) in ``out_dir``; returns the paths."""
+def _negative_damping(bb) -> str | None:
+    """What is wrong with a model backbone whose damping ratio is negative somewhere, or None."""
+    if bb is None or not len(bb):
+        return None
+    z = np.asarray(bb.zeta, float)
+    neg = np.isfinite(z) & (z < 0)
+    if not neg.any():
+        return None
+    a = np.asarray(bb.amplitude, float)[neg]
+    return (f"the model's damping ratio is negative at {int(neg.sum())} of {z.size} amplitudes ({a.min():.4g} to "
+            f"{a.max():.4g}, down to {100 * z[neg].min():.3g} %): a joint dissipates energy, so the model does "
+            "not hold there")
+
+
+def write_backbone_figures(backbones: CampaignBackbones, out_dir, inputs=()) -> list:
+    """The backbones of a saved identification as one output set in ``out_dir``: one PNG per preload
+    (``backbone_<preload>.png``) and ``backbones.json`` (:meth:`CampaignBackbones.summary`); returns
+    the figures' paths.
+
+    The folder is replaced as a whole (:func:`jointid.io.outputset.output_set`, kind ``backbone``):
+    never a mix with an earlier run, never a folder holding anything else or one of ``inputs``.
+    """
     from pathlib import Path
 
+    from ..io.outputset import output_set
+    from ..io.results import write_json
     from ..report.formatting import slug
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for p in backbones.preloads:
-        fig, _ = p.plot()
-        path = out / f"backbone_{slug(p.preload)}.png"
-        fig.savefig(path, dpi=120)
-        paths.append(path)
-    return paths
+    names = []
+    with output_set(out, kind="backbone", inputs=inputs) as tmp:
+        write_json(tmp / "backbones.json", backbones.summary())
+        for p in backbones.preloads:
+            fig, _ = p.plot()
+            name = f"backbone_{slug(p.preload)}.png"
+            fig.savefig(tmp / name, dpi=120)
+            names.append(name)
+    return [out / n for n in names]

@@ -212,9 +212,25 @@ def usable_models(results, source="results.json") -> tuple:
             skipped[p] = "a first-harmonic model (a backbone, no restoring-force terms to solve)"
         elif "q" not in library(m["terms"]).names:
             skipped[p] = "no linear stiffness term 'q'"
+        elif (w2 := _constant_stiffness(m)) is not None and not w2 > 0:
+            skipped[p] = (f"omega1^2 = {w2:.4g} 1/s^2 <= 0: the model has no oscillation to predict (a statically "
+                          "unstable or free structure)")
         else:
             usable.append(m)
     return usable, skipped
+
+
+def _constant_stiffness(entry):
+    """The coefficient of ``q`` (``omega1^2``) of a ``models`` entry when it is a constant, else None."""
+    from ..identify.model import law_size
+
+    lib, orders = _orders(entry)
+    i = 0
+    for t, order in zip(lib, orders):
+        if t.name == "q":
+            return float(entry["parameters"][i]) if law_size(order) == 1 else None
+        i += law_size(order)
+    return None
 
 
 def _orders(entry):

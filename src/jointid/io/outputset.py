@@ -41,12 +41,12 @@ __all__ = ["MARKER", "new_run_id", "read_marker", "marker_text", "check_output_f
            "output_set", "output_set_in_place", "deferred_interrupt", "pid_alive", "remove_leftovers", "KINDS"]
 
 #: Kinds of output set (the ``kind=`` line of the marker).
-KINDS = ("identify", "import", "study", "demo", "public-data", "predict", "simulate", "update")
+KINDS = ("identify", "import", "study", "demo", "public-data", "predict", "simulate", "update", "backbone")
 
 #: Commands whose output folder is an output set, and how: ``(kind, replaced as a whole)``.
 _COMMANDS = {"identify": ("identify", True), "import": ("import", True), "study": ("study", False),
              "demo": ("demo", True), "public-data": ("public-data", True), "predict": ("predict", True),
-             "simulate": ("simulate", True), "update": ("update", True)}
+             "simulate": ("simulate", True), "update": ("update", True), "backbone": ("backbone", True)}
 
 
 def new_run_id() -> str:
