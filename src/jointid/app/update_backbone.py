@@ -79,10 +79,12 @@ class MeasuredBackbone:
 def read_rows(p, what="measured file"):
     """``(kept, rows)``: the file's non-blank, non-comment lines as ``(line number, text)`` and the CSV rows
     under its header; :class:`ManifestError` when it is not readable CSV."""
+    if p.is_dir():
+        raise ManifestError(f"{p}: {what} is a folder, not a file")
     if not p.is_file():
         raise RecordFileNotFoundError(f"{p}: {what} not found")
-    try:
-        with open(p, newline="", encoding="utf-8") as fh:
+    try:  # utf-8-sig: a byte-order mark (a spreadsheet's "CSV UTF-8") is not part of the first line
+        with open(p, newline="", encoding="utf-8-sig") as fh:
             kept = [(n, line) for n, line in enumerate(fh, start=1)
                     if line.strip() and not line.lstrip().startswith("#")]
         rows = list(csv.DictReader(line for _, line in kept))

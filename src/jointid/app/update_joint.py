@@ -36,6 +36,7 @@ the prediction and would blame it for the dwell spacing.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -50,7 +51,7 @@ from ..errors import (
 )
 from ..io.structure_model import read_structure_model
 from ..numerics.intervals import Z95
-from ..rounding import format_ci, format_pm
+from ..rounding import format_ci, format_pm, format_value
 from ..simulate.structure import (
     JointElement,
     ModalModel,
@@ -79,6 +80,18 @@ __all__ = ["JointUpdate", "MeasuredBackbone", "MeasuredFRF", "read_measured", "r
 _FAILED = 1e6
 #: Above this chi2/dof the fit is flagged inadequate (results.json ``fit_adequate``; the command exits 1).
 ADEQUATE_CHI2_PER_DOF = 4.0
+#: A positive law parameter fitted further than this factor from its start is flagged (``far_from_start``; exit 1):
+#: a unit slip in a measured file (amplitudes in mm for m scale a Jenkins joint's slip force by 1000 and fit
+#: as well: the fit alone cannot tell) or a parameter running away where the data do not hold it.
+FAR_FROM_START = 100.0
+
+
+def _exp(t) -> float:
+    """``exp(t)``, inf where that overflows (an unbounded interval, a step of the optimiser far out)."""
+    try:
+        return math.exp(t)
+    except OverflowError:
+        return math.inf
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,6 +104,7 @@ class MeasuredFRF:
     dof: tuple
     X: np.ndarray  # complex a1 - i b1
     se: np.ndarray
+    origin: tuple = ()  # per point (file, line) where read from a file, else empty
 
     def levels(self):
         return sorted(set(self.force_level.tolist()))
@@ -98,14 +112,31 @@ class MeasuredFRF:
     def subset(self, mask):
         m = np.asarray(mask, bool)
         return MeasuredFRF(self.path, self.force_level[m], self.frequency_hz[m],
-                           tuple(d for d, k in zip(self.dof, m) if k), self.X[m], self.se[m])
+                           tuple(d for d, k in zip(self.dof, m) if k), self.X[m], self.se[m],
+                           tuple(o for o, k in zip(self.origin, m) if k))
+
+    def where(self, i) -> str:
+        """``"file: line n"`` of point ``i`` (``"file"`` without line numbers)."""
+        return f"{self.origin[i][0]}: line {self.origin[i][1]}" if self.origin else self.path
+
+
+def _refuse_repeated_points(keys, origins, what):
+    """:class:`ManifestError` at the second occurrence of a key (one measured point given twice)."""
+    seen = {}
+    for key, (f, ln) in zip(keys, origins):
+        if key in seen:
+            f0, ln0 = seen[key]
+            first = f"line {ln0}" if f0 == f else f"{f0}: line {ln0}"
+            raise ManifestError(f"{f}: line {ln} repeats the point of {first} ({what(key)}): each point once, "
+                                "or it counts twice and its standard error shrinks by sqrt 2")
+        seen[key] = (f, ln)
 
 
 def read_measured_frf(path) -> MeasuredFRF:
     """Read a MEASURED.csv; bad input -> :class:`ManifestError` naming the file, row and column."""
     p = Path(path)
     vals = {c: [] for c in FRF_COLUMNS if c != "dof"}
-    dofs = []
+    dofs, lines = [], []
     for i, r in table_rows(p, "measured first-harmonic file", FRF_COLUMNS):  # i: the line of the file
         for c, col in vals.items():
             v = number_cell(p, i, r, c)
@@ -113,9 +144,19 @@ def read_measured_frf(path) -> MeasuredFRF:
                 raise ManifestError(f"{p}: line {i}, column {c}: must be > 0, got {v:g}")
             col.append(v)
         dofs.append(dof_cell(p, i, r))
+        lines.append(i)
     a1, b1 = np.array(vals["a1"]), np.array(vals["b1"])
+    origin = tuple((str(p), i) for i in lines)
+    _refuse_repeated_points(zip(vals["force_level"], vals["frequency_hz"], dofs, vals["a1"], vals["b1"]), origin,
+                            _frf_key)
     return MeasuredFRF(str(p), np.array(vals["force_level"]), np.array(vals["frequency_hz"]), tuple(dofs),
-                       a1 - 1j * b1, np.array(vals["se"]))
+                       a1 - 1j * b1, np.array(vals["se"]), origin)
+
+
+def _frf_key(key):
+    """A measured first harmonic's identity: level, frequency, DOF and the measured a1, b1 (the same frequency
+    measured again on another branch, a sweep up and down through a jump, is another point)."""
+    return f"force_level {key[0]:g}, frequency_hz {key[1]:g}, dof {key[2]}, a1 {key[3]:g}, b1 {key[4]:g}"
 
 
 def _with_law(model: StructureModel, j: int, law, zeta=None) -> StructureModel:
@@ -150,7 +191,7 @@ class _Fitter:
         self.theta0 = np.array([math.log(p0[k]) if lg else p0[k] for k, lg in zip(self.names, self.log)])
 
     def _values(self, theta):
-        return {k: (math.exp(t) if lg else float(t)) for k, t, lg in zip(self.names, theta, self.log)}
+        return {k: (_exp(t) if lg else float(t)) for k, t, lg in zip(self.names, theta, self.log)}
 
     def law(self, theta):
         vals = {k: v for k, v in self._values(theta).items() if _zeta_mode(k) is None}
@@ -191,6 +232,9 @@ class _Fitter:
         backbone the frequencies and the damping ratios over their standard errors."""
         n = (2 * meas.X.size if meas is not None else 0) + sum(2 * bb.n for bb in bbs)
         parts = []
+        if not all(math.isfinite(v) and v != 0 for v, lg in zip(self._values(theta).values(), self.log) if lg) \
+                or not np.all(np.isfinite(theta)):
+            return np.full(n, _FAILED)  # a step of the optimiser out of range (a log parameter at 0 or inf)
         try:
             m = self.structure(theta)  # one structure for both kinds of points
             if meas is not None:
@@ -233,6 +277,8 @@ class JointUpdate:
     warnings: list = field(default_factory=list)
     backbones: list = field(default_factory=list)  # per measured backbone: its points, measured and fitted
     heldout_backbone: dict = field(default_factory=dict)
+    heldout_note: str = ""  # why ``heldout`` is empty (one level, not asked for, no first harmonics)
+    far_from_start: dict = field(default_factory=dict)  # parameter -> estimate / start, beyond FAR_FROM_START
     fitted: dict = field(default_factory=dict)  # measured vs model first harmonics (for the figure), fitted model
 
     @property
@@ -244,6 +290,12 @@ class JointUpdate:
         """chi2/dof <= 4: the law fits the points to within twice their standard errors (rms)."""
         return bool(self.chi2_per_dof <= ADEQUATE_CHI2_PER_DOF)
 
+    @property
+    def flagged(self) -> bool:
+        """Not adequate, or a positive law parameter ended more than :data:`FAR_FROM_START` times above or below
+        its start (``far_from_start``): the command exits 1."""
+        return not self.adequate or bool(self.far_from_start)
+
     def summary(self) -> dict:
         return {
             "kind": "joint_update", "model": self.model_path, "measured": self.measured_path,
@@ -253,7 +305,8 @@ class JointUpdate:
             "chi2": self.chi2, "dof": self.dof, "chi2_per_dof": self.chi2_per_dof, "fit_adequate": self.adequate,
             "covariance_scaled_by_chi2_per_dof": self.covariance_scaled,
             "n_points": self.n_points, "n_harmonics": self.n_harmonics, "function_evaluations": self.nfev,
-            "heldout": self.heldout, "warnings": self.warnings,
+            "heldout": self.heldout, "heldout_note": self.heldout_note, "far_from_start": self.far_from_start,
+            "warnings": self.warnings,
             "n_backbone_points": sum(b["n_points"] for b in self.backbones), "backbones": self.backbones,
             "heldout_backbone": self.heldout_backbone,
         }
@@ -267,8 +320,14 @@ class JointUpdate:
              + (" (covariance scaled by it)" if self.covariance_scaled else " (covariance not scaled: <= 1)"),
              "", f"{'parameter':<10} {'start':>10} {'estimate ± standard error':>28} {'95 % interval':>24}  unit"]
         for k in self.names:
-            L.append(f"{k:<10} {self.start[k]:>10.6g} {format_pm(self.estimate[k], self.stderr[k]):>28} "
-                     f"{format_ci(self.ci95[k], self.stderr[k]):>24}  {self.units.get(k, '')}")
+            lo, hi = self.ci95[k]
+            if all(math.isfinite(x) for x in (lo, hi, self.stderr[k])):
+                pm, ci = format_pm(self.estimate[k], self.stderr[k]), format_ci(self.ci95[k], self.stderr[k])
+            else:  # not resolved: the estimate where the fit stopped, the interval as it is (inf, or none)
+                pm = f"{format_value(self.estimate[k])} (not resolved)"
+                ci = "–" if math.isnan(lo) or math.isnan(hi) else \
+                    "[" + ", ".join(format_value(x) if math.isfinite(x) else f"{x:g}" for x in (lo, hi)) + "]"
+            L.append(f"{k:<10} {self.start[k]:>10.6g} {pm:>28} {ci:>24}  {self.units.get(k, '')}")
         for b in self.backbones:
             L += ["", (f"backbone {b['file']} ({b['n_points']} points, chi2 {b['chi2']:.4g}): amplitude at dof, "
                        "frequency [Hz] and damping ratio [%], measured ± se and fitted"),
@@ -289,6 +348,8 @@ class JointUpdate:
                          f"damping {hb['rms_z_damping']:.3g}; max |error| frequency "
                          f"{hb['max_abs_frequency_error_pct']:.4g} %, damping ratio "
                          f"{hb['max_abs_damping_error_pct']:.4g} %")
+        if self.heldout_note:
+            L += ["", f"leave-one-level-out: none, {self.heldout_note}"]
         if self.heldout:
             L += ["", "leave-one-level-out (fitted without the level, its response predicted):",
                   f"{'level':>8} {'peak f err %':>13} {'peak A err %':>13} {'rms A err %':>12}  note"]
@@ -319,23 +380,33 @@ def _measured_peak(f, a):
 
 def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time, bbs=()):
     keep = meas.force_level != level
-    sol = fitter.fit(meas.subset(keep), theta0=theta_all, bbs=bbs)
     out = meas.subset(~keep)
     dof = out.dof[0]
-    row = {"force_level": level, "dof": dof, "parameters": {k: float(v) for k, v in
-                                                             fitter.law(sol.x).parameters.items()},
+    row = {"force_level": level, "dof": dof, "parameters": None,
            "peak_frequency_error_pct": None, "peak_amplitude_error_pct": None, "rms_amplitude_error_pct": None,
            "note": ""}
+    if 2 * int(keep.sum()) + 2 * sum(bb.n for bb in bbs) <= len(fitter.names):
+        row["note"] = "too few points left without this level to fit the parameters"
+        return row
+    sol = fitter.fit(meas.subset(keep), theta0=theta_all, bbs=bbs)
+    if np.all(sol.fun == _FAILED):
+        row["note"] = "the fit without this level found no parameters where the model can be solved"
+        return row
+    row["parameters"] = {k: float(v) for k, v in fitter.law(sol.x).parameters.items()}
+    sv = np.linalg.svd(sol.jac, compute_uv=False)
+    weak = "the points kept do not determine every parameter (singular Jacobian): the prediction is weak; " \
+        if not sv[-1] > 1e-8 * sv[0] else ""
+    row["note"] = weak.rstrip("; ")
     try:
         pred = fitter.responses(sol.x, out)
-    except ConvergenceError as exc:
-        row["note"] = f"dwell prediction failed: {exc}"
+    except (ConvergenceError, StructureError) as exc:
+        row["note"] = f"{weak}dwell prediction failed: {exc}"
         return row
     row["rms_amplitude_error_pct"] = float(100 * np.sqrt(np.mean((np.abs(pred) / np.abs(out.X) - 1) ** 2)))
     mp = _measured_peak(out.frequency_hz, np.abs(out.X))
     pp = _measured_peak(out.frequency_hz, np.abs(pred))
     if mp is None or pp is None:
-        row["note"] = "peak not resolved by the dwells (largest dwell at an end of the band)"
+        row["note"] = f"{weak}peak not resolved by the dwells (largest dwell at an end of the band)"
         return row
     # like with like: the same estimator on the predicted and the measured dwells (same branch)
     row.update(measured_peak_frequency_hz=mp[0], measured_peak_amplitude=mp[1],
@@ -349,8 +420,8 @@ def _heldout(fitter, meas, level, theta_all, n_harmonics, n_time, bbs=()):
         amp = np.array([abs(to_complex(m.modal.shape(dof) @ p.modal)[1]) for p in curve.points])
         cf, ca = located_peak(curve.frequency_hz, amp)
         row.update(model_peak_frequency_hz=cf, model_peak_amplitude=ca)
-    except ConvergenceError as exc:
-        row["note"] = f"continuation of the predicted curve failed: {exc}"
+    except (ConvergenceError, StructureError) as exc:
+        row["note"] = f"{weak}continuation of the predicted curve failed: {exc}"
     return row
 
 
@@ -413,24 +484,43 @@ def _heldout_backbone(fitter, meas, bbs, n_par):
 def read_measured(paths):
     """``(MeasuredFRF or None, [MeasuredBackbone])`` from measured files, each recognised by its header
     (first harmonics: several files are joined; backbones: one target each)."""
-    frfs, bbs = [], []
+    frfs, bbs, seen = [], [], {}
     for p in paths:
-        if measured_kind(p) == "frf":
+        kind = measured_kind(p)  # a missing file, a folder, an unknown header: said here
+        real = os.path.realpath(p)
+        if real in seen:
+            again = "" if str(seen[real]) == str(p) else f" (also as {seen[real]})"
+            raise ManifestError(f"{p}: measured file given twice{again}: its points would count twice and "
+                                "their standard errors shrink by sqrt 2")
+        seen[real] = p
+        if kind == "frf":
             frfs.append(read_measured_frf(p))
         else:
             bbs.append(read_measured_backbone(p))
+    # the same point in two files counts twice as surely as one file given twice
+    _refuse_repeated_points([(d, int(r), a, f, z) for bb in bbs for d, r, a, f, z in
+                             zip(bb.dof, bb.mode, bb.amplitude, bb.frequency_hz, bb.damping_ratio)],
+                            [(bb.path, int(ln)) for bb in bbs for ln in bb.line],
+                            lambda k: f"dof {k[0]}, mode {k[1]}, amplitude {k[2]:g}, frequency_hz {k[3]:g}, "
+                                      f"damping_ratio {k[4]:g}")
     if not frfs:
         return None, bbs
     if len(frfs) == 1:
         return frfs[0], bbs
-    return MeasuredFRF(", ".join(m.path for m in frfs), np.concatenate([m.force_level for m in frfs]),
-                       np.concatenate([m.frequency_hz for m in frfs]), sum((m.dof for m in frfs), ()),
-                       np.concatenate([m.X for m in frfs]), np.concatenate([m.se for m in frfs])), bbs
+    joined = MeasuredFRF(", ".join(m.path for m in frfs), np.concatenate([m.force_level for m in frfs]),
+                         np.concatenate([m.frequency_hz for m in frfs]), sum((m.dof for m in frfs), ()),
+                         np.concatenate([m.X for m in frfs]), np.concatenate([m.se for m in frfs]),
+                         sum((m.origin for m in frfs), ()))
+    _refuse_repeated_points(zip(joined.force_level.tolist(), joined.frequency_hz.tolist(), joined.dof,
+                                joined.X.real.tolist(), (-joined.X.imag).tolist()), joined.origin, _frf_key)
+    return joined, bbs
 
 
 def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmonics=9, n_time=None,
                  heldout=True) -> JointUpdate:
     """Fit a joint law's parameters of ``model_path`` to measured first harmonics (see the module doc)."""
+    if Path(model_path).is_dir():
+        raise ManifestError(f"{model_path}: structure model is a folder, not a file (give its .toml file)")
     spec = read_structure_model(model_path)
     model, _ = structure_from_spec(spec)
     items = measured if isinstance(measured, (list, tuple)) else [measured]
@@ -470,9 +560,11 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
         raise ManifestError(f"{source}: nothing measured to update to (no first harmonics, no backbone)")
     for bb in bbs:
         check_backbone(bb, model, source)
-    for d in sorted(set(meas.dof) if meas is not None else ()):
+    for i, d in enumerate(meas.dof if meas is not None else ()):
         if d not in model.modal.dof_names:
-            raise ManifestError(f"{meas.path}: dof {d!r} is not a DOF of the structure model {source}")
+            col = ", column dof" if meas.origin else ""
+            raise ManifestError(f"{meas.where(i)}{col}: dof {d!r} is not a DOF of the structure model {source} "
+                                f"(its DOFs: {', '.join(model.modal.dof_names)})")
     law = model.joints[j].law
     units = {**(law.units if units is None else units), **{f"zeta_{r + 1}": "1" for r in range(model.modal.n_modes)}}
     avail = list(law.parameters) + [f"zeta_{r + 1}" for r in range(model.modal.n_modes)]
@@ -481,6 +573,10 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
     if bad or not names:
         raise ManifestError(f"{source}: joint {names_j[j]!r} ({law.name}) has no parameter(s) "
                             f"{', '.join(bad) or '(none given)'}; its parameters: {', '.join(avail)}")
+    twice = sorted({k for k in names if names.count(k) > 1})
+    if twice:
+        raise ManifestError(f"{source}: parameters to fit ({', '.join(names)}): {', '.join(twice)} named more "
+                            "than once; name each parameter once")
     n_par = len(names)
     n_frf = meas.X.size if meas is not None else 0
     n_bb = sum(bb.n for bb in bbs)
@@ -518,23 +614,38 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
     scaled = chi2 / dof > 1
     if scaled:
         cov = cov * (chi2 / dof)
-    se_t = np.sqrt(np.clip(np.diag(cov), 0, None))
-    est, se, ci = {}, {}, {}
+    var = np.diag(cov)
+    with np.errstate(invalid="ignore"):  # a negative variance (round-off of a near-singular J^T J): not resolved
+        se_t = np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
+    est, se, ci, far = {}, {}, {}, {}
     for k, t, s, lg in zip(names, sol.x, se_t, fitter.log):
-        v = math.exp(t) if lg else float(t)
+        v = _exp(t) if lg else float(t)
         est[k] = v
         se[k] = v * float(s) if lg else float(s)
-        ci[k] = [math.exp(t - Z95 * s), math.exp(t + Z95 * s)] if lg else [t - Z95 * s, t + Z95 * s]
-        if np.isfinite(s) and s > (1.0 if lg else max(abs(t), 1e-12)):
+        ci[k] = [_exp(t - Z95 * s), _exp(t + Z95 * s)] if lg else [t - Z95 * s, t + Z95 * s]
+        if not np.isfinite(s):
+            warn.append(f"{k} is not resolved by these data (no standard error)")
+        elif not all(math.isfinite(x) for x in ci[k]):
+            warn.append(f"{k} is not resolved by these data: its 95 % interval is unbounded")
+        elif s > (1.0 if lg else max(abs(t), 1e-12)):
             warn.append(f"{k} is poorly determined (relative standard error > 100 %)")
+        if lg and _zeta_mode(k) is None and math.isfinite(v) and v > 0 \
+                and not 1 / FAR_FROM_START <= v / fitter.start[k] <= FAR_FROM_START:  # a law's parameter only: a
+            # modal damping ratio may well drop far below a random test's (which held the joint's dissipation)
+            far[k] = v / fitter.start[k]
     with np.errstate(invalid="ignore", divide="ignore"):
         d = np.sqrt(np.diag(cov))
         corr = (cov / np.outer(d, d)).tolist()
     if chi2 / dof > ADEQUATE_CHI2_PER_DOF:
         warn.append(f"chi2/dof = {chi2 / dof:.3g}: the model does not fit the points to their standard errors")
+    for k, r in far.items():
+        how = f"{r:.3g} times above" if r > 1 else f"{1 / r:.3g} times below"
+        warn.append(f"{k} = {est[k]:.4g} ended {how} its start {fitter.start[k]:g} (more than {FAR_FROM_START:g}): "
+                    "a unit slip (amplitudes in mm, not m?) or a parameter the data do not hold; not trusted")
     res = JointUpdate(str(source), ", ".join(paths), names_j[j], law.name, names,
                       {k: units.get(k, "") for k in names}, fitter.start, est, se, ci, dict(zip(names, fitter.log)),
-                      chi2, dof, bool(scaled), corr, int(n_frf), int(n_harmonics), int(sol.nfev), warnings=warn)
+                      chi2, dof, bool(scaled), corr, int(n_frf), int(n_harmonics), int(sol.nfev), warnings=warn,
+                      far_from_start=far)
     res.fitted = {"measured": meas, "model": fitter.responses(sol.x, meas) if meas is not None else None,
                   "structure": fitter.structure(sol.x), "n_time": n_time}
     fb = fitter.backbones(sol.x, bbs)
@@ -542,7 +653,14 @@ def update_structure_joint(model: StructureModel, meas: MeasuredFRF | None, *, j
     for bb, (f, z) in zip(bbs, fb):
         c2 = float(sum(np.sum(v**2) for v in bb.z_scores(f, z)))
         res.backbones.append({"file": bb.path, "n_points": bb.n, "chi2": c2, "points": _backbone_points(bb, f, z)})
-    if heldout and meas is not None and len(meas.levels()) >= 2:
+    if not heldout:
+        res.heldout_note = "not asked for (--no-heldout)"
+    elif meas is None:
+        res.heldout_note = "no first harmonics: no force level to leave out (the backbone's check: heldout_backbone)"
+    elif len(meas.levels()) < 2:
+        res.heldout_note = (f"one force level only ({meas.levels()[0]:g}): no level to leave out and predict; "
+                            "the fit is not checked against data it has not seen")
+    else:
         for lv in meas.levels():
             res.heldout.append(_heldout(fitter, meas, lv, sol.x, n_harmonics, n_time, bbs))
     if heldout and bbs:
