@@ -209,8 +209,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="output folder (results.json, report.txt, report.html, figures/)")
     p.add_argument("--frequency-range", nargs=2, type=_float_in(0.0, 1e9), metavar=("LO", "HI"), default=None,
                    help="band of the curves in Hz (default: the measured band, widened until the peak is inside)")
-    p.add_argument("--harmonics", type=_int_in(1, 50), default=5, help="harmonics of the harmonic balance "
-                   "(default: %(default)s)")
+    p.add_argument("--harmonics", type=_int_in(1, 50), default=None,
+                   help="harmonics of the harmonic balance (default: 5; for MODEL.toml its [predict] "
+                   "n_harmonics when it has one)")
     p.add_argument("--no-uncertainty", action="store_true",
                    help="skip the standard errors of the peaks (two more solutions per model parameter)")
     p.add_argument("--time-check", type=_int_in(0, 50), default=None, metavar="N",
@@ -475,7 +476,7 @@ def _predict(args) -> int:
     check_output_folder(args.out, "predict", inputs=(file.parent,))
     progress = None if args.quiet else (lambda line: print(f"jointid predict: {line}", file=sys.stderr, flush=True))
     res = predict_from_results(file, args.force_levels, frequency_range=args.frequency_range,
-                               n_harmonics=args.harmonics, uncertainty=not args.no_uncertainty, progress=progress)
+                               n_harmonics=5 if args.harmonics is None else args.harmonics, uncertainty=not args.no_uncertainty, progress=progress)
     write_predictions(res, args.out, inputs=(file.parent,))
     if not args.quiet:
         print(res.report())
@@ -496,11 +497,16 @@ def _predict_structure(args) -> int:
     check_output_folder(args.out, "predict", inputs=(args.results.parent,))
     progress = None if args.quiet else (lambda line: print(f"jointid predict: {line}", file=sys.stderr, flush=True))
     res = predict_structure(args.results, force_levels=levels, frequency_range=args.frequency_range,
-                            n_harmonics=args.harmonics, progress=progress, time_check=args.time_check)
+                            n_harmonics=args.harmonics, progress=progress,  # None: the file's, else 5
+                            time_check=args.time_check)
     write_structure_predictions(res, args.out, inputs=(args.results.parent,))
     if not args.quiet:
         print(res.report())
         print(f"\nresults written to {args.out}")
+    else:  # what makes the prediction unsure, even when quiet
+        for line in res.lines():
+            if "FAILED" in line or "WARNING" in line or "no peak" in line:
+                print(f"jointid predict: {line}", file=sys.stderr)
     return EXIT_PARTIAL if res.failed else EXIT_OK
 
 
@@ -515,9 +521,10 @@ def _update(args) -> int:
     if not args.quiet:
         print(res.report())
         print(f"\nresults written to {args.out}")
-    elif not res.adequate:
-        print(f"jointid update: {res.warnings[-1]}", file=sys.stderr)
-    return EXIT_OK if res.adequate else EXIT_PARTIAL  # an inadequate law: a status a script can see
+    elif res.flagged:
+        for line in res.warnings:
+            print(f"jointid update: {line}", file=sys.stderr)
+    return EXIT_PARTIAL if res.flagged else EXIT_OK  # an inadequate law, a unit slip: a status a script can see
 
 
 COMMANDS = {"demo": _demo, "import": _import, "identify": _identify, "simulate": _simulate, "example": _example, "modal": _modal,

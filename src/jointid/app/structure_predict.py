@@ -9,7 +9,10 @@ Newton iterations, the largest relative residual and the cost per point.  For ev
 mode in the band (else the one nearest to it) it computes the damped nonlinear mode by the
 extended periodic motion concept (:mod:`jointid.simulate.nlmodes`): backbone frequency and
 damping ratio against the modal amplitude, from 1/1000 of the largest amplitude the
-responses reach up to 1.5 times it.  The stability of
+responses reach up to 1.5 times it.  A curve whose largest amplitude is at an end (no peak in
+the band), a continuation stopped before the end of the band, a time check that failed or
+could not be done and a model implausible at rest (statically unstable, negative or no
+damping: :func:`_model_warnings`) are flagged: :attr:`StructurePrediction.failed`.  The stability of
 the points is not reported: Hill's method with the periodic-map Jacobian of slider laws
 (:meth:`jointid.simulate.structure_hb.CondensedHB.growth_rate`) is not yet checked for them.
 :func:`write_structure_predictions` writes ``results.json``, ``report.txt`` and a figure as
@@ -20,13 +23,14 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConvergenceError, ManifestError
-from ..io.structure_model import read_structure_model
+from ..errors import ConvergenceError, ConvergenceWarning, ManifestError
+from ..io.structure_model import read_structure_model, stuck_stiffness
 from ..simulate.structure import structure_from_spec
 from ..simulate.nlmodes import epmc_backbone
 from ..simulate.structure_hb import default_n_time, to_complex
@@ -71,6 +75,7 @@ class LevelPrediction:
     max_residual: float = float("nan")
     seconds_per_point: float = float("nan")
     error: str = ""
+    warnings: list = field(default_factory=list)  # what makes the curve unsure (a continuation stopped early)
     modal_max: object = None  # largest first-harmonic amplitude of each modal coordinate on the curve
     peak_point: object = None  # the curve's point of largest first-harmonic amplitude at the first response DOF
 
@@ -86,8 +91,19 @@ class LevelPrediction:
             "curve": {"frequency_hz": self.frequency_hz, "amplitude": self.amplitude},
             "timing": {"seconds_per_point": _finite_or_none(self.seconds_per_point)},
             "error": self.error,
+            "warnings": list(self.warnings),
         }
         return out
+
+    @property
+    def no_peak(self) -> list:
+        """Response DOFs whose largest amplitude is at an end of the curve (no peak in the band)."""
+        return [d for d, p in self.peaks.items() if p.get("located") == "no peak"]
+
+    @property
+    def flagged(self) -> bool:
+        """Failed, or a curve without a peak at some response DOF, or one with warnings."""
+        return bool(self.error or self.warnings or self.no_peak)
 
 
 @dataclass
@@ -138,15 +154,21 @@ class StructurePrediction:
     levels: list
     backbones: list = field(default_factory=list)
     time_checks: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)  # the model's implausible features (static instability, ...)
 
     @property
     def failed(self) -> list:
-        return [lv for lv in self.levels if lv.error] + [b for b in self.backbones if b.error]
+        """What makes the prediction unsure (the command then exits 1): failed or flagged levels (no peak in the
+        band, a partial curve), failed backbones, time checks that failed or could not be done, and the
+        model's :attr:`warnings`."""
+        return ([lv for lv in self.levels if lv.flagged] + [b for b in self.backbones if b.error]
+                + [c for c in self.time_checks if c["error"]] + list(self.warnings))
 
     def summary(self) -> dict:
         return {"kind": "structure prediction", "source": self.source, "model": self.model,
                 "settings": self.settings, "force_level_unit": "N", "predictions": [lv.summary() for lv in self.levels],
-                "backbones": [b.summary() for b in self.backbones], "time_checks": self.time_checks}
+                "backbones": [b.summary() for b in self.backbones], "time_checks": self.time_checks,
+                "warnings": list(self.warnings)}
 
     def unit(self, dof) -> str:
         """Unit of a response DOF's motion (``[response] units`` of the model file; m unless declared)."""
@@ -160,12 +182,12 @@ class StructurePrediction:
             if lv.error:
                 out.append(f"F = {lv.force_level:g} N: FAILED: {lv.error}")
                 continue
-            pk = "; ".join(f"{d} peak {p['peak_amplitude']:.4g} {self.unit(d)} at {p['peak_frequency_hz']:.6g} Hz"
-                           for d, p in lv.peaks.items())
+            pk = "; ".join(self._peak_text(d, p) for d, p in lv.peaks.items())
             folds = f"folds at {', '.join(f'{f:.6g}' for f in lv.folds_hz)} Hz" if lv.folds_hz else "no fold"
             out.append(f"F = {lv.force_level:g} N: {pk}; {folds}; {lv.n_points} points, "
                        f"{lv.newton_iterations_mean:.2g} Newton iterations per point, residual <= "
                        f"{lv.max_residual:.1e}, {1e3 * lv.seconds_per_point:.3g} ms per point")
+            out.extend(f"F = {lv.force_level:g} N: WARNING: {w}" for w in lv.warnings)
         skipped = self.settings.get("backbone_modes_not_excited")
         if skipped:
             out.append(f"nonlinear modes {', '.join(map(str, skipped))} in the band: not excited by the force, "
@@ -191,7 +213,16 @@ class StructurePrediction:
                        f"fundamental at the response DOFs differs from the harmonic balance by {txt or 'none'}"
                        + "".join(f"; F = {c['force_level']:g} N: FAILED: {c['error']}" for c in bad)
                        + f"; {sum(c['cost_s'] for c in self.time_checks):.3g} s")
+        out.extend(f"WARNING: {w}" for w in self.warnings)
         return out
+
+    def _peak_text(self, d, p) -> str:
+        if p.get("located") == "no peak":
+            band = self.settings.get("frequency_range_hz") or [float("nan")] * 2
+            return (f"{d} no peak in {band[0]:.6g}-{band[1]:.6g} Hz (largest {p['largest_amplitude']:.4g} "
+                    f"{self.unit(d)} at {p['largest_at_hz']:.6g} Hz, an end of the curve: the response still grows "
+                    "there)")
+        return f"{d} peak {p['peak_amplitude']:.4g} {self.unit(d)} at {p['peak_frequency_hz']:.6g} Hz"
 
     def report(self) -> str:
         return "\n".join(self.lines())
@@ -245,6 +276,9 @@ def _time_checks(st, levels, response, n_points, periods=TIME_CHECK_PERIODS) -> 
             r = integrate_structure(st, p, dofs=response, n_periods=periods, rtol=1e-7,
                                     atol=1e-10 * max(float(np.abs(p.modal).max()), 1e-300))
             row.update(relative_difference=r.relative_difference, n_steps=r.n_steps)
+            if not math.isfinite(r.relative_difference):
+                row.update(relative_difference=None, error="the fundamental of the time integration or of the "
+                                                           "harmonic balance is not a finite number")
         except ConvergenceError as exc:
             row["error"] = str(exc)
         row["cost_s"] = time.process_time() - t0
@@ -266,13 +300,18 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
     levels = list(force_levels) if force_levels is not None else pred.get("force_levels")
     band = tuple(frequency_range) if frequency_range is not None else pred.get("frequency_range_hz")
     if not levels:
-        raise ManifestError(f"{spec.path}: predict.force_levels: missing (or give the force levels)")
+        raise ManifestError(f"{spec.path}: predict.force_levels: missing (give them in [predict] or with --force-levels)")
     if band is None:
-        raise ManifestError(f"{spec.path}: predict.frequency_range_hz: missing (or give the frequency range)")
+        raise ManifestError(f"{spec.path}: predict.frequency_range_hz: missing (give it in [predict] or with "
+                            "--frequency-range LO HI)")
     if not (0 < band[0] < band[1]):
         raise ManifestError(f"{spec.path}: frequency range {band}: expected 0 < low < high")
     H = int(n_harmonics if n_harmonics is not None else pred.get("n_harmonics", 5))
     N = int(n_time if n_time is not None else pred.get("n_time", default_n_time(H)))
+    if N <= 2 * H:
+        src = "predict.n_time" if n_time is None else "n_time"
+        raise ManifestError(f"{spec.path}: {src}: {N} time samples per period must exceed 2 n_harmonics = {2 * H} "
+                            f"(n_harmonics {H}{' from --harmonics' if n_harmonics is not None else ''})")
     st, response = structure_from_spec(spec)
     model = {"name": spec.name, "path": spec.path, "n_modes": st.modal.n_modes,
              "frequencies_hz": [float(x) for x in st.modal.frequencies_hz],
@@ -288,7 +327,15 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
         lv = LevelPrediction(float(F))
         t0 = time.process_time()
         try:
-            curve = st.frequency_response(band[0], band[1], float(F), H, N)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", ConvergenceWarning)
+                curve = st.frequency_response(band[0], band[1], float(F), H, N)
+            for w in caught:  # a continuation stopped early: the level's warning; any other warning as it came
+                if issubclass(w.category, ConvergenceWarning):
+                    msg = str(w.message).replace("; returning the partial curve", "")
+                    lv.warnings.append(f"{msg}: the curve is partial, its peak unsure")
+                else:
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         except ConvergenceError as exc:
             lv.error = str(exc)
             out.append(lv)
@@ -298,9 +345,17 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
         cost = time.process_time() - t0
         pts = curve.points
         lv.frequency_hz = [float(p.frequency_hz) for p in pts]
+        end_hz = pts[-1].frequency_hz
+        if not lv.warnings and not any(math.isclose(end_hz, b, rel_tol=1e-9) for b in band):
+            lv.warnings.append(f"the curve ends at {end_hz:.6g} Hz, inside the band: it is partial, its peak unsure")
         for d in response:
             amp = [float(abs(to_complex(st.response(p, [d])[d])[1])) for p in pts]
             lv.amplitude[d] = amp
+            top = int(np.argmax(amp))
+            if top == 0 or top == len(amp) - 1:  # the largest amplitude at an end of the curve: no peak in the band
+                lv.peaks[d] = {"peak_frequency_hz": None, "peak_amplitude": None, "located": "no peak",
+                               "largest_amplitude": amp[top], "largest_at_hz": lv.frequency_hz[top]}
+                continue
             fpk, apk = located_peak(lv.frequency_hz, amp)
             refined = _refined_peak(st, pts, curve.folds, amp, d, float(F), H, N)
             located = "refined" if refined is not None else "between points"
@@ -316,7 +371,9 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
         lv.seconds_per_point = cost / max(len(pts), 1)
         out.append(lv)
         if progress:
-            progress(f"F = {F:g}: {len(pts)} points, {len(lv.folds_hz)} fold(s)")
+            progress(f"F = {F:g}: {len(pts)} points, {len(lv.folds_hz)} fold(s)"
+                     + (f"; no peak in the band at {', '.join(lv.no_peak)}" if lv.no_peak else "")
+                     + "".join(f"; {w}" for w in lv.warnings))
     plan = _backbone_plan(st, band, out)
     settings["backbone_modes"] = [r + 1 for r, top in plan if top > 0]
     settings["backbone_modes_not_excited"] = [r + 1 for r, top in plan if not top > 0]
@@ -328,9 +385,67 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
     settings["time_check_points"] = n_checks
     checks = _time_checks(st, out, response, n_checks)
     if progress and checks:
-        progress(f"time integration from {len(checks)} peak(s): fundamental within "
-                 f"{max((c['relative_difference'] or 0.0) for c in checks):.1e}")
-    return StructurePrediction(spec.path, model, settings, out, backbones, checks)
+        done = [c for c in checks if not c["error"]]
+        bad = [c for c in checks if c["error"]]
+        progress(f"time integration from {len(checks)} peak(s): "
+                 + (f"fundamental within {max(c['relative_difference'] for c in done):.1e}" if done else "")
+                 + ("; " if done and bad else "")
+                 + (f"{len(bad)} FAILED ({bad[0]['error']})" if bad else ""))
+    flags = _model_warnings(st, spec, band) + _backbone_warnings(backbones)
+    return StructurePrediction(spec.path, model, settings, out, backbones, checks, flags)
+
+
+def _model_warnings(st, spec, band) -> list:
+    """What makes the model implausible at rest: a negative stiffness (statically unstable: the joints' stiffness
+    at rest less ``k_model`` makes the modal stiffness indefinite), a negative damping (modal damping with the
+    joints' viscous terms), an elastic mode in the band without any damping at rest."""
+    e = st.engine
+    out = []
+    psi, el = e.joint_shapes, ~e._rigid
+    k_rest, c_rest = [], []
+    for j in spec.joints:
+        try:
+            k_rest.append(stuck_stiffness(j.law) - j.k_model)
+        except (AttributeError, TypeError):  # a law without a stiffness at rest known here
+            k_rest.append(0.0)
+        terms = dict(getattr(j.law, "terms", ()) or ())
+        c_rest.append(float(terms.get("q'", 0.0)))
+    K = np.diag(e.omega**2) + psi.T @ (np.array(k_rest)[:, None] * psi)
+    C = np.diag(2 * e.zeta * e.omega) + psi.T @ (np.array(c_rest)[:, None] * psi)
+    K, C = K[np.ix_(el, el)], C[np.ix_(el, el)]
+    if K.size:
+        lam = np.linalg.eigvalsh(K)
+        if lam[0] < -1e-9 * max(float(np.abs(lam).max()), 1e-300):
+            ks = ", ".join(f"{j.name!r} {k:.4g}" for j, k in zip(spec.joints, k_rest))
+            out.append(f"statically unstable: with the joints' stiffness at rest less k_model ({ks}) the modal "
+                       f"stiffness has a negative eigenvalue ({lam[0]:.4g} 1/s^2): the rest position is unstable "
+                       "and the responses around it are no physical motion")
+        mu = np.linalg.eigvalsh(C)
+        if mu[0] < -1e-9 * max(float(np.abs(mu).max()), 1e-300):
+            cs = ", ".join(f"{j.name!r} q' = {c:.4g}" for j, c in zip(spec.joints, c_rest) if c)
+            out.append(f"negative damping at rest: the modal damping with the joints' viscous terms ({cs}) has a "
+                       f"negative eigenvalue ({mu[0]:.4g} 1/s): the joints feed energy in")
+        idx = np.flatnonzero(el)
+        f = e.omega / (2 * np.pi)
+        undamped = [int(r) + 1 for k, r in enumerate(idx)
+                    if band[0] <= f[r] <= band[1] and abs(C[k, k]) <= 1e-12 * e.omega[r]]
+        if undamped:
+            out.append(f"mode(s) {', '.join(map(str, undamped))} in the band have no damping at rest (modal damping "
+                       "ratio 0 and no viscous joint term): their resonance is bounded only by the joints' slip, if "
+                       "at all")
+    return out
+
+
+def _backbone_warnings(backbones) -> list:
+    """A nonlinear mode whose damping ratio turns negative: the model feeds energy in there."""
+    out = []
+    for b in backbones:
+        z = np.asarray(b.damping_ratio, float)
+        if z.size and float(z.min()) < -1e-6:
+            i = int(np.argmin(z))
+            out.append(f"nonlinear mode {b.mode}: negative damping ratio {z[i]:.3g} at modal amplitude "
+                       f"{b.amplitude[i]:.3g}: the model feeds energy in there")
+    return out
 
 
 def _backbone_plan(st, band, levels):

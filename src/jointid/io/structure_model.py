@@ -42,6 +42,11 @@ _MODAL = {"frequencies_hz", "damping_ratios", "dof_names", "shapes"}
 _DAMPING = {"modal", "rayleigh"}
 _JOINT = {"name", "dofs", "law", "parameters", "k_model", "motion"}
 _PREDICT = {"frequency_range_hz", "force_levels", "n_harmonics", "n_time"}
+#: Largest number of DOFs of a ``[matrices]`` model: the matrices are dense and their modes are
+#: found by a dense eigensolver (a bigger model: reduce it, or give its modal data).
+MAX_DOFS = 5000
+#: Bounds of ``[predict] n_harmonics`` (as ``--harmonics``) and ``n_time``.
+MAX_HARMONICS, MAX_N_TIME = 50, 65536
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,6 +178,11 @@ def _matrix_from(path, key, file, array_key):
         elif suffix == ".mtx":
             import scipy.io
 
+            rows, cols, _, _, kind, _ = scipy.io.mminfo(file)
+            if kind == "pattern":
+                raise _err(path, key, f"{file.name}: a Matrix Market \"pattern\" file holds where the entries are, "
+                                      "not their values: expected a real matrix")
+            _check_size(path, key, file, "the matrix", (rows, cols))
             a = scipy.io.mmread(file)
         else:
             raise _err(path, key, f"{file.name}: expected a .npz, .mat or .mtx file")
@@ -181,8 +191,10 @@ def _matrix_from(path, key, file, array_key):
     except Exception as exc:  # a damaged file: say which one
         raise _err(path, key, f"cannot read {file.name}: {exc}") from None
     if hasattr(a, "toarray"):
+        _check_size(path, key, file, array_key, a.shape)  # before making it dense
         a = a.toarray()
     a = np.asarray(a)
+    _check_size(path, key, file, array_key, a.shape)
     if a.dtype.kind not in "fiu":
         raise _err(path, key, f"{file.name}: {array_key!r} is not a real numeric matrix (dtype {a.dtype})")
     a = a.astype(float)
@@ -195,6 +207,26 @@ def _matrix_from(path, key, file, array_key):
     return a
 
 
+def _check_size(path, key, file, what, shape):
+    if len(shape) == 2 and max(int(shape[0]), int(shape[1])) > MAX_DOFS:
+        raise _err(path, key, f"{file.name}: {what!s} has {shape[0]} x {shape[1]} entries: at most {MAX_DOFS} DOFs "
+                              "(the matrices are dense here; reduce the model or give its modal data in [modal])")
+
+
+def _law_parameter(path, key, v):
+    """A law parameter as written: a TOML number, or a non-empty list of numbers (not a bool, not a string)."""
+    if isinstance(v, list):
+        if not v:
+            raise _err(path, key, "expected a number or a non-empty list of numbers, got []")
+        for i, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                raise _err(path, f"{key}[{i}]", f"expected a number, got {x!r}")
+        return v
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _err(path, key, f"expected a number, got {v!r}")
+    return v
+
+
 def _law(path, key, j):
     name = j.get("law")
     if name not in JOINT_LAWS:
@@ -203,6 +235,7 @@ def _law(path, key, j):
     if not isinstance(params, dict):
         raise _err(path, f"{key}.parameters", "expected a table of parameters")
     cls = JOINT_LAWS[name]
+    params = {k: _law_parameter(path, f"{key}.parameters.{k}", v) for k, v in params.items()}
     try:
         if cls is PolynomialLaw:
             return cls(dict(params))
@@ -213,6 +246,14 @@ def _law(path, key, j):
         raise _err(path, f"{key}.parameters", f"{name}: {exc}") from None
     except (StructureError, ValueError) as exc:
         raise _err(path, f"{key}.parameters", str(exc)) from None
+
+
+def _motion_dimension(unit):
+    """``"length"`` or ``"angle"`` for a unit of a DOF's motion (:mod:`jointid.io.units`), else None."""
+    from .units import ANGLE, LENGTH, UNITS
+
+    dim = UNITS.get(str(unit).strip().lower(), (None, None))[1]
+    return "length" if dim == LENGTH else "angle" if dim == ANGLE else None
 
 
 def stuck_stiffness(law) -> float:
@@ -300,7 +341,8 @@ def read_structure_model(path) -> StructureSpec:
                 raise _err(path, f"modal.shapes[{i}]", f"{r.size} values for {fr.size} modes")
         if zr.size != fr.size:
             raise _err(path, "modal.damping_ratios", f"{zr.size} values for {fr.size} modes")
-        out.update(frequencies_hz=fr, zeta=zr, shapes=np.array(rows), dof_names=names)
+        order = np.argsort(fr, kind="stable")  # the modes from the lowest, each with its shape and damping ratio
+        out.update(frequencies_hz=fr[order], zeta=zr[order], shapes=np.array(rows)[:, order], dof_names=names)
     damp = _table(path, doc, "damping", _DAMPING, required=mats is not None)
     if damp is not None:
         if modal is not None:
@@ -333,6 +375,10 @@ def read_structure_model(path) -> StructureSpec:
             if k not in _JOINT:
                 raise _err(path, key, unknown_key_message(k, _JOINT))
         jn = j.get("name", f"joint{i + 1}")
+        if not isinstance(jn, str) or not jn:
+            raise _err(path, f"{key}.name", f"expected a non-empty string, got {jn!r}")
+        if any(o.name == jn for o in joints):
+            raise _err(path, f"{key}.name", f"joint name {jn!r} appears twice (each joint element needs its own name)")
         d = j.get("dofs")
         if not isinstance(d, list) or len(d) not in (1, 2) or not all(isinstance(s, str) for s in d):
             raise _err(path, f"{key}.dofs", "expected one DOF name (to ground) or two (relative motion b - a)")
@@ -346,6 +392,10 @@ def read_structure_model(path) -> StructureSpec:
         km = j.get("k_model", 0.0)
         if km == "stuck":
             km = stuck_stiffness(law)
+            if not (math.isfinite(km) and km >= 0):
+                raise _err(path, f"{key}.k_model", f"\"stuck\" takes the law's stiffness at rest, here {km:g} (its "
+                                                    "\"q\" term) < 0: give k_model as a number (the joint's stiffness "
+                                                    "already in the linear model), or a law stiff at rest")
         km = _number(path, f"{key}.k_model", km, nonneg=True)
         motion = j.get("motion", "translation")
         if motion not in ("translation", "rotation"):
@@ -356,6 +406,8 @@ def read_structure_model(path) -> StructureSpec:
     if not isinstance(fd, dict) or not fd:
         raise _err(path, "force.dofs", "expected a table DOF name -> weight")
     fw = {dof("force.dofs", k): float(_number(path, f"force.dofs.{k}", v)) for k, v in fd.items()}
+    if not any(fw.values()):
+        raise _err(path, "force.dofs", "every weight is 0: the model has no force")
     resp = _table(path, doc, "response", {"dofs", "units"}, required=True)
     rd = resp.get("dofs")
     if not isinstance(rd, list) or not rd or not all(isinstance(s, str) for s in rd):
@@ -367,6 +419,9 @@ def read_structure_model(path) -> StructureSpec:
     for k in ru:
         if k not in response:
             raise _err(path, f"response.units.{k}", f"not one of the response DOFs {list(response)}")
+    for k, u in ru.items():
+        if _motion_dimension(u) is None:
+            raise _err(path, f"response.units.{k}", f"{u!r} is not a unit of length or angle (e.g. m, mm, rad, deg)")
     units = {d: str(ru.get(d, "m")).strip() for d in response}
     pred = _table(path, doc, "predict", _PREDICT) or {}
     predict = {}
@@ -378,9 +433,11 @@ def read_structure_model(path) -> StructureSpec:
     if "force_levels" in pred:
         predict["force_levels"] = [float(x) for x in _numbers(path, "predict.force_levels", pred["force_levels"],
                                                               positive=True)]
-    for k in ("n_harmonics", "n_time"):
+    for k, top in (("n_harmonics", MAX_HARMONICS), ("n_time", MAX_N_TIME)):
         if k in pred:
             predict[k] = int(_number(path, f"predict.{k}", pred[k], positive=True, integer=True))
+            if predict[k] > top:
+                raise _err(path, f"predict.{k}", f"expected an integer from 1 to {top}, got {predict[k]}")
     if "n_harmonics" in predict and "n_time" in predict and predict["n_time"] <= 2 * predict["n_harmonics"]:
         raise _err(path, "predict.n_time", f"must exceed 2 n_harmonics = {2 * predict['n_harmonics']}")
     out.update(joints=tuple(joints), force=fw, response=response, predict=predict, response_units=units)

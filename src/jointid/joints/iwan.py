@@ -35,7 +35,7 @@ from ..errors import StructureError
 from ._core import JointLaw, _number, _scalar_out
 from .sliders import DiscreteIwan, jenkins_harmonic_stiffness
 
-__all__ = ["Iwan4", "discretize_iwan4"]
+__all__ = ["Iwan4", "MAX_SLIDERS", "discretize_iwan4"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,7 +55,8 @@ class Iwan4(JointLaw):
         Delta (``S``) part over the continuous part of the stiffness, ``>= 0``.
     n_sliders : int
         Jenkins elements of the continuous part in the discretisation that :meth:`force`
-        and :meth:`aft` evaluate (the delta part adds one element when ``beta > 0``).
+        and :meth:`aft` evaluate (the delta part adds one element when ``beta > 0``), from 2 to
+        :data:`MAX_SLIDERS`.
     phi_min_ratio : float
         Smallest interval edge of that discretisation relative to ``phi_max``.
 
@@ -82,12 +83,9 @@ class Iwan4(JointLaw):
         object.__setattr__(self, "K_T", _number(nm, "K_T", self.K_T, positive=True))
         object.__setattr__(self, "chi", _number(nm, "chi", self.chi, lo=-1.0, hi=1.0))
         object.__setattr__(self, "beta", _number(nm, "beta", self.beta, nonneg=True))
-        n = int(self.n_sliders) if float(self.n_sliders) == int(self.n_sliders) else -1
-        if n < 2:
-            raise StructureError(f"{nm} parameter n_sliders: expected an integer >= 2, got {self.n_sliders!r}")
-        object.__setattr__(self, "n_sliders", n)
+        object.__setattr__(self, "n_sliders", _slider_count(nm, self.n_sliders))
         object.__setattr__(self, "phi_min_ratio", _number(nm, "phi_min_ratio", self.phi_min_ratio, lo=0.0, hi=1.0))
-        object.__setattr__(self, "sliders", discretize_iwan4(self, n, self.phi_min_ratio))
+        object.__setattr__(self, "sliders", discretize_iwan4(self, self.n_sliders, self.phi_min_ratio))
 
     # --- derived parameters ---------------------------------------------------------
     @property
@@ -180,6 +178,22 @@ class Iwan4(JointLaw):
         return self.sliders.aft_projected(u_t, P, E, state0=state0, lazy=lazy)
 
 
+#: Largest ``n_sliders`` of an :class:`Iwan4` (each harmonic-balance point costs time in proportion:
+#: 1e6 sliders took 78 s for one small prediction; the discretisation converges long before).
+MAX_SLIDERS = 10_000
+
+
+def _slider_count(law, value) -> int:
+    """``n_sliders`` as an int from 2 to :data:`MAX_SLIDERS`, or a :class:`StructureError` naming it."""
+    want = f"{law} parameter n_sliders: expected an integer from 2 to {MAX_SLIDERS}, got {value!r}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise StructureError(want)
+    v = float(value)
+    if not np.isfinite(v) or v != int(v) or not 2 <= v <= MAX_SLIDERS:
+        raise StructureError(want)
+    return int(v)
+
+
 def _loss_integral(chi, top):
     """``int_0^top s^chi (1 - g(s)) ds`` (``g``: :func:`jenkins_harmonic_stiffness`)."""
     val, _ = integrate.quad(
@@ -201,9 +215,7 @@ def discretize_iwan4(law: Iwan4, n_sliders: int = 300, phi_min_ratio: float = 1e
     one more element (``S``, ``S phi_max``).  The discrete model therefore has exactly the
     stiffness ``K_T`` and the macro-slip force ``F_S`` of the continuous one.
     """
-    n = int(n_sliders)
-    if n < 2:
-        raise StructureError(f"n_sliders: expected an integer >= 2, got {n_sliders!r}")
+    n = _slider_count(getattr(law, "name", "4-parameter Iwan"), n_sliders)
     pm, c, R = law.phi_max, law.chi, law.R
     edges = np.concatenate([[0.0], pm * np.geomspace(phi_min_ratio, 1.0, n)])
     k = R * np.diff(edges ** (c + 1.0)) / (c + 1.0)

@@ -40,7 +40,8 @@ def plot_structure_frf(prediction):
         for lv in ok:
             line, = ax.plot(lv.frequency_hz, lv.amplitude[d], lw=1.2, label=f"F = {lv.force_level:g} N")
             pk = lv.peaks[d]
-            ax.plot(pk["peak_frequency_hz"], pk["peak_amplitude"], "o", color=line.get_color(), ms=4)
+            if pk.get("peak_frequency_hz") is not None:  # none where the curve has no peak in the band
+                ax.plot(pk["peak_frequency_hz"], pk["peak_amplitude"], "o", color=line.get_color(), ms=4)
         for b in prediction.backbones:
             if b.amplitude:
                 ax.plot(b.frequency_hz, b.response_amplitude[d], "k--", lw=0.9, label=f"backbone, mode {b.mode}")

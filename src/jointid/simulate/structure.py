@@ -290,7 +290,21 @@ def structure_from_spec(spec) -> tuple:
         else:
             base = ModalModel.from_hz(spec.frequencies_hz, spec.zeta, spec.dof_names, spec.shapes)
         joints = [JointElement(j.name, j.dof_a, j.dof_b, j.law, j.k_model) for j in spec.joints]
-        return StructureModel(base, joints, spec.force, n_modes=spec.n_modes), tuple(spec.response)
+        st = StructureModel(base, joints, spec.force, n_modes=spec.n_modes)
     except StructureError as exc:
         msg = str(exc)
         raise StructureError(msg if msg.startswith(where) else where + msg) from None
+    # what moves nothing: a joint whose relative motion is zero in every mode kept, a force that excites no mode
+    # (zero to rounding of the shapes at the DOFs concerned)
+    n, modal = st.modal.n_modes, st.modal
+    for i, j in enumerate(joints):
+        scale = sum(np.abs(modal.shape(d)) for d in (j.dof_a, j.dof_b) if d is not None)
+        if np.all(np.abs(st.engine.joint_shapes[i]) <= 1e-12 * scale):
+            dofs = " - ".join(d for d in (j.dof_b, j.dof_a) if d is not None)
+            raise StructureError(f"{where}joint[{i}].dofs: joint {j.name!r} ({dofs}) does not move in any of the {n} "
+                                 "modes: the joint is inert (check the mode shapes at its DOFs)")
+    scale = sum(abs(w) * np.abs(modal.shape(d)) for d, w in st.force.items())
+    if np.all(np.abs(st.engine.force_shape) <= 1e-12 * scale):
+        raise StructureError(f"{where}force.dofs: the force DOFs {list(st.force)} do not move in any of the {n} modes: "
+                             "the force excites nothing")
+    return st, tuple(spec.response)

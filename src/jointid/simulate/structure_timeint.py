@@ -95,8 +95,12 @@ def _harmonics(y, w, t, H):
     return out
 
 
+#: Default bound on the DOP853 steps of one run, per period and largest step (``max_steps``).
+STEPS_PER_MAX_STEP = 40
+
+
 def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=60, *, shapes=None,
-                         n_harmonics=None, n_grid=4096, rtol=1e-11, atol=1e-14) -> TimeIntegration:
+                         n_harmonics=None, n_grid=4096, rtol=1e-11, atol=1e-14, max_steps=None) -> TimeIntegration:
     """Integrate ``engine``'s model (a :class:`~jointid.simulate.structure_hb.CondensedHB`) from ``point``.
 
     Parameters
@@ -114,11 +118,17 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
         Harmonics returned (default: the point's).
     n_grid : int
         Samples of the last period for the Fourier sums.
+    max_steps : int, optional
+        Most DOP853 steps of the run (default ``STEPS_PER_MAX_STEP n_periods steps_per_period``). An
+        explicit integrator's step is bounded by the fastest mode: a run whose highest natural
+        frequency alone needs more steps is refused before it starts, and a run that reaches the
+        bound (stiff joints) is stopped.
 
     Raises
     ------
     ConvergenceError
-        The integrator failed or the motion left the finite numbers.
+        The integrator failed, the motion left the finite numbers, or the run needs more than
+        ``max_steps`` steps (the model is too stiff for an explicit integration).
     """
     t0 = time.process_time()
     n_periods, spp = int(n_periods), int(steps_per_period)
@@ -127,6 +137,13 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
     w = float(point.omega)
     T = 2 * np.pi / w
     Psi, pf, Om, ze, km = engine.joint_shapes, engine.force_shape, engine.omega, engine.zeta, engine.k_model
+    max_steps = STEPS_PER_MAX_STEP * n_periods * spp if max_steps is None else int(max_steps)
+    # DOP853 is stable for h Omega up to about 4 on an undamped mode: the fastest mode alone needs ~ Omega T / 4 steps
+    need = n_periods * float(Om.max()) * T / 4.0
+    if not need <= max_steps:
+        raise ConvergenceError(f"time integration at {w / (2 * np.pi):.6g} Hz not done: the highest mode "
+                               f"({Om.max() / (2 * np.pi):.3g} Hz) needs about {need:.2g} steps of an explicit "
+                               f"integrator over {n_periods} periods, more than the bound {max_steps}")
     laws = engine.laws
     H = point.n_harmonics if n_harmonics is None else int(n_harmonics)
     Fc = np.asarray(point.force, float)
@@ -161,6 +178,10 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
     with np.errstate(over="raise", invalid="raise"):
         try:
             while solver.status == "running":
+                if n_steps >= max_steps:
+                    raise ConvergenceError(f"time integration at {w / (2 * np.pi):.6g} Hz stopped after {n_steps} "
+                                           f"steps at t = {solver.t / T:.3g} of {n_periods} periods (the bound): the "
+                                           "model is too stiff for an explicit integration")
                 t_old, y_old = solver.t, solver.y.copy()
                 solver.step()
                 if solver.status == "failed":
