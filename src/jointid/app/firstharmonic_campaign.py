@@ -44,22 +44,91 @@ __all__ = ["is_first_harmonic_campaign", "identify_first_harmonic_campaign", "Fi
            "FirstHarmonicPreload", "RecordOutcome", "ringdown_backbone", "compare_with_model"]
 
 
+def _raw_entry(campaign: Campaign, spec) -> dict:
+    """The ``[[record]]`` table of a record as written in the manifest (empty when not at hand)."""
+    entries = (campaign.manifest or {}).get("record")
+    if isinstance(entries, list) and 0 <= spec.index < len(entries) and isinstance(entries[spec.index], dict):
+        return entries[spec.index]
+    return {}
+
+
+def _nearest(value, choices):
+    """The valid choice nearest to a misspelt ``value`` (None when none is near)."""
+    import difflib
+
+    if not isinstance(value, str):
+        return None
+    close = difflib.get_close_matches(value, [str(c) for c in choices], n=1, cutoff=0.6)
+    return close[0] if close and close[0] != value else None
+
+
+def _intended_kind(campaign: Campaign, spec):
+    """The kind of a record: its excitation, or for an entry the manifest refused (its error fails that record
+    alone) the kind it was meant to be (a valid excitation, the nearest to a misspelt one, or
+    ``"first-harmonic"`` when it has a ``control`` key); None when it cannot be told."""
+    if not spec.error:
+        return spec.excitation
+    from ..io.campaign import EXCITATIONS
+
+    raw = _raw_entry(campaign, spec)
+    kind = raw.get("excitation", EXCITATIONS[0])
+    if isinstance(kind, str) and kind in EXCITATIONS:
+        return kind
+    near = _nearest(kind, EXCITATIONS)
+    if near is not None:
+        return near
+    return "first-harmonic" if "control" in raw else None
+
+
+def _manifest_hint(campaign: Campaign, spec) -> str:
+    """``"; did you mean 'first-harmonic'?"`` for a misspelt ``excitation`` or ``control`` of an entry."""
+    from ..io.campaign import CONTROLS, EXCITATIONS
+
+    raw = _raw_entry(campaign, spec)
+    hints = []
+    for key, choices in (("excitation", EXCITATIONS), ("control", CONTROLS)):
+        value = raw.get(key)
+        if value is None or value in choices:
+            continue
+        near = _nearest(value, choices)
+        if near is not None:  # the manifest's message names the key, the value and the valid ones
+            hints.append(f"{key} = {value!r}: did you mean {near!r}?")
+    return ("; " + "; ".join(hints)) if hints else ""
+
+
 def is_first_harmonic_campaign(campaign: Campaign) -> bool:
     """Whether the campaign holds first-harmonic records (with, at most, force-free ring-downs besides).
+
+    A record whose manifest entry was refused (a misspelt ``excitation`` or a bad ``control``)
+    counts as the kind it was meant to be: it fails alone, the campaign goes on.
 
     Raises
     ------
     IdentificationError
-        First-harmonic records mixed with time records of stepped sines or broadband tests.
+        First-harmonic records mixed with time records of stepped sines or broadband tests; a
+        campaign of ring-down records only (nothing to fit a model on); a first-harmonic
+        campaign with ``coordinates = "physical"`` (its ``[structure]`` would not be used).
     """
-    kinds = {r.excitation for r in campaign.records}
+    manifest = campaign.root / "campaign.toml"
+    kinds = {_intended_kind(campaign, r) for r in campaign.records} - {None}
+    if kinds == {"ringdown"}:
+        raise IdentificationError(
+            f"{manifest}: the campaign holds only ring-down records ({len(campaign.records)}): nothing to identify "
+            "from; a ring-down is identified beside the first-harmonic (or stepped-sine) records of its preload, "
+            "whose model gives the mode it is band-limited around and compared with: add those records")
     if "first-harmonic" not in kinds:
         return False
     other = kinds - {"first-harmonic", "ringdown"}
     if other:
-        raise IdentificationError(f"{campaign.root / 'campaign.toml'}: first-harmonic records are identified on "
+        raise IdentificationError(f"{manifest}: first-harmonic records are identified on "
                                   f"their own (with ring-downs); this campaign also has {sorted(other)} records: "
                                   f"put them in a campaign of their own")
+    if campaign.coordinates == "physical":
+        raise IdentificationError(
+            f"{manifest}: [campaign] coordinates = \"physical\" with a [structure] table does not apply to "
+            "first-harmonic records: they hold the force and the acceleration at the driving point (one nonlinear "
+            "mode's accelerance) and the structure's mode shapes and sensors would be ignored; write coordinates = "
+            "\"modal\" and remove [structure]")
     return True
 
 
@@ -88,7 +157,8 @@ def ringdown_backbone(t, accel, frequency_hz, label="", **options):
 
     Returns ``(Backbone, DecayFit, monotone check dict)``.
     """
-    d = modal_ringdown(t, accel, f_range=(0.85 * frequency_hz, 1.15 * frequency_hz), **options)
+    hw = RINGDOWN_HALF_WIDTH
+    d = modal_ringdown(t, accel, f_range=((1 - hw) * frequency_hz, (1 + hw) * frequency_hz), **options)
     b = d.backbone(label=label, measure="signal", amplitude_unit=AMPLITUDE_UNIT)
     mono = monotone_check(b.amplitude, b.omega, b.omega_stderr) if len(b) >= 3 else {"monotone": None}
     floor = d.signal_amplitude[d.below_noise_floor]
@@ -110,6 +180,10 @@ def compare_with_model(fit, ring: Backbone) -> dict:
     difference; ``zeta_ratio``: ring-down over model damping ratio.
     """
     lo, hi = fit.amplitude_range
+    if not len(ring):
+        return {"overlap": None, "n_windows": 0,
+                "note": f"no overlap: the ring-down has no window above the noise floor, stepped sine "
+                        f"{lo:.3g}..{hi:.3g}"}
     m = (ring.amplitude >= lo) & (ring.amplitude <= hi)
     if not m.any():
         return {"overlap": None, "n_windows": 0,
@@ -150,6 +224,22 @@ class FirstHarmonicPreload:
             stepped = self.fit.line_points(label=f"preload {self.preload} lines")
         return PreloadBackbones(self.preload, model=model, stepped=stepped,
                                 ringdown=tuple(r[1] for r in self.ringdowns), errors=dict(self.errors))
+
+    def model_name(self) -> str:
+        """The model in words: one nonlinear mode whose frequency and damping depend on the amplitude."""
+        if self.fit is None:
+            return "nonlinear-mode (amplitude-dependent natural frequency and damping ratio)"
+        m = self.fit.model
+        return (f"nonlinear-mode (amplitude-dependent natural frequency, law {m.frequency_law.kind}, and damping "
+                f"ratio, law {m.damping_law.kind})")
+
+    def adequacy_entry(self) -> dict:
+        """results.json ``adequacy`` entry: the model, whether it holds (``adequate``) and why (``verdict``)."""
+        if self.adequacy is None:
+            why = "no model fitted" if self.fit is None else "no adequacy check"
+            return {"preload": self.preload, "model": self.model_name(), "adequate": None,
+                    "verdict": f"not assessed: {why}"}
+        return {"preload": self.preload, "model": self.model_name(), **self.adequacy}
 
     def lolo_summary(self) -> list:
         out = []
@@ -198,6 +288,16 @@ class FirstHarmonicCampaignResult:
 
         return CampaignBackbones(tuple(p.backbones() for p in self.preloads))
 
+    def stage_line(self) -> str:
+        """The progress line of ``jointid identify`` once the campaign is identified."""
+        n_levels = sum(1 for r in self.records if r.ok and r.kind == "first-harmonic")
+        n_rings = sum(len(p.ringdowns) for p in self.preloads)
+        n_models = sum(p.fit is not None for p in self.preloads)
+        return (f"identified {len(self.records)} records ({n_levels} first-harmonic level(s), {n_rings} ring-down(s) "
+                f"used, {len(self.failed)} failed), {n_models} nonlinear-mode model(s) of {len(self.preloads)} "
+                f"preload(s): {'laws given' if self.laws else 'laws by leave-one-level-out'}, fit, re-prediction of "
+                "every level from its forces, adequacy, backbones")
+
     def preload(self, label) -> FirstHarmonicPreload:
         for p in self.preloads:
             if p.preload == label:
@@ -238,7 +338,7 @@ class FirstHarmonicCampaignResult:
             "broadband": [],
             "flagged": [],
             "backbones": bb,
-            "adequacy": [{"preload": p.preload, **(p.adequacy or {"adequate": None})} for p in self.preloads],
+            "adequacy": [p.adequacy_entry() for p in self.preloads],
             "selection": [{"preload": p.preload, **(p.selection or {"selected": list(self.laws or ())})}
                           for p in self.preloads],
             "first_harmonic": [p.summary() for p in self.preloads],
@@ -273,9 +373,7 @@ class FirstHarmonicCampaignResult:
                                  f"{e['phase_rms_deg']:14.2f}")
             if p.adequacy is not None:
                 verdict = "adequate" if p.adequacy["adequate"] else "NOT adequate"
-                worst = max(max(r["lag1_z_real"], r["lag1_z_imag"]) for r in p.adequacy["levels"])
-                lines.append(f"  residuals: {verdict} (largest lag-1 autocorrelation z {worst:.2f}, limit "
-                             f"{p.adequacy['levels'][0]['lag1_z_limit']:.2f})")
+                lines.append(f"  residuals: {verdict}: {p.adequacy_entry()['verdict']}")
             for i, b, d, m in p.ringdowns:
                 lines.append(f"  ring-down record {i}: {len(b)} windows above the noise floor, amplitude "
                              f"{b.amplitude.min():.3g} .. {b.amplitude.max():.3g} m/s^2, frequency "
@@ -445,6 +543,100 @@ def _check_one_resonance(levels) -> None:
             "columns), so the preload is not identified")
 
 
+#: Largest ratio between the resonance frequency of one level and the median over the levels of a
+#: preload for the levels to be taken as the same mode (the Brake-Reuss beam's levels: 1.004;
+#: frequencies of one level written in rad/s: 2 pi).
+MAX_LEVEL_FREQUENCY_RATIO = 1.5
+#: Smallest ratio of a ring-down's largest spectral peak in the band of the identified mode to its
+#: largest peak anywhere: below it the record rings at another mode (or another point).
+MIN_RINGDOWN_BAND_PEAK = 0.01
+#: Half width of the ring-down band around the identified mode, as a fraction of its frequency.
+RINGDOWN_HALF_WIDTH = 0.15
+
+
+def _frequency_outliers(levels, outcomes, preload) -> list:
+    """``(outcome index, message)`` of each level whose resonance is far from the other levels' one.
+
+    Raises
+    ------
+    IdentificationError
+        When the levels disagree and at least half of them are off: which are right cannot be told.
+    """
+    if len(levels) < 2:
+        return []
+    peaks = np.array([float(lv.frequency_hz[int(np.argmax(np.abs(lv.frf)))]) for _, lv in levels])
+    ref = float(np.median(peaks))
+    ratio = np.maximum(peaks / ref, ref / peaks)
+    off = ratio > MAX_LEVEL_FREQUENCY_RATIO
+    if not off.any():
+        return []
+    if 2 * int(off.sum()) >= len(levels):
+        raise IdentificationError(
+            "the levels' resonances are not those of one mode: " + ", ".join(
+                f"level {lv.label} at {f:.4g} Hz" for (_, lv), f in zip(levels, peaks)) +
+            f" (more than x{MAX_LEVEL_FREQUENCY_RATIO:g} apart; frequencies of a level in rad/s?), so the preload "
+            "is not identified")
+    out = []
+    for (i, lv), f, r, bad in zip(levels, peaks, ratio, off):
+        if not bad:
+            continue
+        spec = outcomes[i].spec
+        unit = "; a factor near 2 pi: frequencies in rad/s where Hz are expected?" if abs(r / (2 * np.pi) - 1) < 0.05 \
+            else ""
+        out.append((i, f"{where(spec.file, spec.index, 'frequency_hz')}the resonance of this level is at {f:.4g} Hz, "
+                       f"x{r:.3g} from that of the other levels of preload {preload} ({ref:.4g} Hz, median; at most "
+                       f"x{MAX_LEVEL_FREQUENCY_RATIO:g} apart is taken as the same mode){unit} The record is left out"))
+    return out
+
+
+def _ringdown_of(spec, fit, ringdown_options=None):
+    """Backbone of a ring-down record around the identified mode, or a RecordError saying why it is not usable.
+
+    Refused: a record whose largest spectral peak lies outside the band of the mode and dwarfs
+    what is in the band (a ring-down of another mode), a decay fit that is noise, grows, does not
+    decay or gives too few windows (:func:`jointid.signal.ringdown_checks.ringdown_flags`), and a
+    backbone with no window above the noise floor.
+    """
+    from ..errors import RecordError
+    from ..io.campaign import read_record
+    from ..signal.ringdown_checks import ringdown_flags
+
+    data = read_record(spec, required=("time", "accel"))
+    f0 = float(fit.backbone(amplitudes=[fit.amplitude_range[0]]).frequency_hz[0])
+    t, x = data.time, data.channels["accel"]
+    b, d, mono = ringdown_backbone(t, x, f0, label=f"ring-down {spec.index}", **(ringdown_options or {}))
+    loc = where(spec.file, spec.index, "accel")
+    band = ((1 - RINGDOWN_HALF_WIDTH) * f0, (1 + RINGDOWN_HALF_WIDTH) * f0)
+    f_peak, in_band = _spectral_peaks(t, x, band)
+    if not band[0] <= f_peak <= band[1] and not in_band >= MIN_RINGDOWN_BAND_PEAK:
+        raise RecordError(f"{loc}the ring-down's largest spectral peak is at {f_peak:.4g} Hz, far from the identified "
+                          f"mode at {f0:.4g} Hz; in the mode's band {band[0]:.4g}..{band[1]:.4g} Hz the largest peak is "
+                          f"{in_band:.2g} of it (at least {MIN_RINGDOWN_BAND_PEAK:g}): a ring-down of another mode (or "
+                          "another point), not used")
+    flags = ringdown_flags(d, "accel")
+    if flags:
+        raise RecordError(f"{loc}not a usable free decay of the mode at {f0:.4g} Hz: "
+                          + "; ".join(f.report() for f in flags))
+    if not len(b):
+        raise RecordError(f"{loc}no window of the decay in {band[0]:.4g}..{band[1]:.4g} Hz rises above the noise floor")
+    mono["vs_stepped_sine"] = compare_with_model(fit, b)
+    return b, d, mono
+
+
+def _spectral_peaks(t, x, band) -> tuple:
+    """``(frequency of the largest spectral peak [Hz], largest peak in band / largest peak)`` of a record."""
+    x = np.asarray(x, float) - np.mean(x)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    n = 1 << int(np.ceil(np.log2(2 * t.size)))
+    X = np.abs(np.fft.rfft(x * np.hanning(x.size), n))
+    f = np.fft.rfftfreq(n, dt)
+    X[0] = 0.0
+    k = int(np.argmax(X))
+    sel = (f >= band[0]) & (f <= band[1])
+    top = float(X[k])
+    return float(f[k]), (float(X[sel].max()) / top if sel.any() and top > 0 else 0.0)
+
+
 def _label(spec):
     if spec.force_level is not None:
         return str(spec.force_level)
@@ -468,7 +660,6 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
     ringdown_options : dict, optional
         Passed to :func:`jointid.signal.ringdown.modal_ringdown`.
     """
-    from ..io.campaign import read_record
     from ..io.firsth import read_first_harmonic_record
 
     if not isinstance(campaign, Campaign):
@@ -492,17 +683,26 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
             continue
         try:
             rec = read_first_harmonic_record(spec)
-        except JointidError as exc:
-            outcomes.append(RecordOutcome(spec, False, str(exc)))
+        except JointidError as exc:  # a refused manifest entry: the misspelt choice and the nearest valid one
+            hint = _manifest_hint(campaign, spec) if spec.error else ""
+            outcomes.append(RecordOutcome(spec, False, str(exc) + hint))
             continue
         outcomes.append(RecordOutcome(spec, True, n_lines=len(rec)))
-        levels_of.setdefault(spec.preload, []).append(FirstHarmonicLevel.from_record(rec, _label(spec)))
+        level = FirstHarmonicLevel.from_record(rec, _label(spec))
+        levels_of.setdefault(spec.preload, []).append((len(outcomes) - 1, level))
     preloads = []
     for preload in list(dict.fromkeys([r.spec.preload for r in outcomes])):
-        levels = levels_of.get(preload, [])
         errors = {}
         fit = sel = adq = None
         lo = ()
+        try:  # a level whose resonance is far from the others' (a unit mistake) fails its record alone
+            for i, message in _frequency_outliers(levels_of.get(preload, []), outcomes, preload):
+                outcomes[i] = RecordOutcome(outcomes[i].spec, False, message)
+            levels = [lv for i, lv in levels_of.get(preload, []) if outcomes[i].ok]
+        except IdentificationError as exc:
+            errors["fit"] = str(exc)
+            preloads.append(FirstHarmonicPreload(preload, errors=errors))
+            continue
         if not levels:
             if preload in ring_of:
                 errors["fit"] = "no first-harmonic record could be read for this preload"
@@ -530,15 +730,20 @@ def identify_first_harmonic_campaign(campaign, settings=None, *, laws=None, cand
         for i, spec in ring_of.get(preload, []):
             if fit is None:
                 break
-            try:
-                data = read_record(spec, required=("time", "accel"))
-                f0 = float(fit.backbone(amplitudes=[fit.amplitude_range[0]]).frequency_hz[0])
-                b, d, mono = ringdown_backbone(data.time, data.channels["accel"], f0, label=f"ring-down {spec.index}",
-                                               **(ringdown_options or {}))
-                mono["vs_stepped_sine"] = compare_with_model(fit, b)
-                rings.append((spec.index, b, d.summary(), mono))
-            except JointidError as exc:
-                outcomes[i] = RecordOutcome(spec, False, f"{where(spec.file, spec.index)}{exc}", kind="ringdown")
+            used = False
+            with warnings.catch_warnings(record=True) as caught:  # a refused record's own warnings: in its error
+                warnings.simplefilter("always")
+                try:
+                    b, d, mono = _ringdown_of(spec, fit, ringdown_options)
+                    rings.append((spec.index, b, d.summary(), mono))
+                    used = True
+                except JointidError as exc:
+                    loc = where(spec.file, spec.index)
+                    text = str(exc) if str(exc).startswith(str(spec.file)) else f"{loc}{exc}"
+                    outcomes[i] = RecordOutcome(spec, False, text, kind="ringdown")
+            for w in caught:
+                if used or not issubclass(w.category, JointidWarning):
+                    warnings.warn(w.message, w.category, stacklevel=1)
         preloads.append(FirstHarmonicPreload(preload, fit, sel, lo, adq, tuple(rings), errors))
     notes = run_notes + [f"preload {p.preload}: {k}: {e}" for p in preloads for k, e in p.errors.items()]
     notes += [f"record failed: {o.error}" for o in outcomes if not o.ok]

@@ -740,9 +740,33 @@ def adequacy(fit: FirstHarmonicFit, alpha=0.01) -> dict:
         rows.append({"level": lv.label, "lag1_z_real": float(zs[0]), "lag1_z_imag": float(zs[1]),
                      "lag1_z_limit": float(zc), "white": bool(white), "scale_ratio": ratio,
                      "scale_range": [float(lo), float(hi)], "ok": bool(level_ok)})
-    return {"adequate": bool(ok), "alpha": alpha, "levels": rows,
+    return {"adequate": bool(ok), "verdict": _adequacy_verdict(rows), "alpha": alpha, "levels": rows,
             "test": "lag-1 autocorrelation of the residuals along frequency (one-sided) and level scale vs pooled "
                     "(chi^2), Bonferroni over the levels"}
+
+
+def _adequacy_verdict(rows) -> str:
+    """The reason of the adequacy verdict in words, with the numbers (rows of :func:`adequacy`)."""
+    if not rows:
+        return "not assessed: no level"
+    limit = rows[0]["lag1_z_limit"]
+    worst = max(rows, key=lambda r: max(r["lag1_z_real"], r["lag1_z_imag"]))
+    z_worst = max(worst["lag1_z_real"], worst["lag1_z_imag"])
+    coloured = [r for r in rows if not r["white"]]
+    scaled = [r for r in rows if not r["scale_range"][0] <= r["scale_ratio"] <= r["scale_range"][1]]
+    if not coloured and not scaled:
+        return (f"the residuals are white along frequency (largest lag-1 autocorrelation z {z_worst:.2f}, limit "
+                f"{limit:.2f}) and of one scale over the {len(rows)} level(s)")
+    why = []
+    if coloured:
+        why.append(f"the residuals are not white along frequency at {len(coloured)} of {len(rows)} level(s) "
+                   f"(largest lag-1 autocorrelation z {z_worst:.2f} at level {worst['level']}, limit {limit:.2f}): "
+                   "the model leaves a smooth misfit")
+    if scaled:
+        why.append("the residual scale differs from the pooled one at " + ", ".join(
+            f"level {r['level']} (x{r['scale_ratio']:.3g}, expected {r['scale_range'][0]:.3g}.."
+            f"{r['scale_range'][1]:.3g})" for r in scaled))
+    return "; ".join(why)
 
 
 def simulate_levels(fit: FirstHarmonicFit, rng, noise=None) -> tuple:
