@@ -250,3 +250,10 @@ def test_two_joints_of_one_name_are_refused(tmp_path):
                               'parameters = { kt = 2.5e3, Fs = 1.25 }\n')
     with pytest.raises(ManifestError, match=r"MODEL\.toml: joint\[1\]\.name: joint name 'slip' appears twice"):
         read_structure_model(p)
+
+
+def test_a_folder_given_as_the_model_is_said_to_be_one(tmp_path):
+    folder = tmp_path / "MODEL.toml"
+    folder.mkdir()
+    with pytest.raises(ManifestError, match=r"MODEL\.toml: structure model is a folder, not a file"):
+        read_structure_model(folder)

@@ -519,8 +519,6 @@ def read_measured(paths):
 def update_joint(model_path, measured, *, joint=None, parameters=None, n_harmonics=9, n_time=None,
                  heldout=True) -> JointUpdate:
     """Fit a joint law's parameters of ``model_path`` to measured first harmonics (see the module doc)."""
-    if Path(model_path).is_dir():
-        raise ManifestError(f"{model_path}: structure model is a folder, not a file (give its .toml file)")
     spec = read_structure_model(model_path)
     model, _ = structure_from_spec(spec)
     items = measured if isinstance(measured, (list, tuple)) else [measured]

@@ -272,6 +272,8 @@ def stuck_stiffness(law) -> float:
 def read_structure_model(path) -> StructureSpec:
     """Read and check a MODEL.toml (see the module docstring and ``docs/formats.md``)."""
     path = Path(path)
+    if path.is_dir():
+        raise ManifestError(f"{path}: structure model is a folder, not a file (give its .toml file)")
     if not path.is_file():
         raise RecordFileNotFoundError(f"{path}: structure model file not found")
     try:
