@@ -750,6 +750,12 @@ def test_toml_writer_round_trips_hostile_labels(tmp_path):
     labels = ["=1+1", 'quote " and \\ backslash', "$x$", "tab\tnew\nline", "ünïcödé", "#comment"]
     write_campaign(tmp_path, "x", [{"file": f"r{i}.csv", "preload": p, "force_level": 1}
                                    for i, p in enumerate(labels)])
+    import tomllib
+
+    written = tomllib.loads((tmp_path / "campaign.toml").read_text(encoding="utf-8"))
+    assert [r["preload"] for r in written["record"]] == labels  # the writer escapes every label
     camp = load_campaign(tmp_path)
-    assert [r.preload for r in camp.records] == labels
+    assert [r.preload for r in camp.records if r.error is None] == [p for p in labels if "\t" not in p]
+    # control characters print as another label (or break the report): that record is refused
+    assert "preload" in camp.records[3].error and "character" in camp.records[3].error
     assert toml_dumps({"a": {"b": 1}})  # tables write

@@ -30,14 +30,22 @@ column, values that are not finite, columns of different lengths and a time base
 not uniform are refused with an error naming the file, the record and the channel.  The
 manifest itself is checked before any work: UTF-8 text, known keys (an unknown key names the
 nearest valid one), types, finite values, bounded sizes; a problem of one entry (a bad value,
-a duplicated file) fails that record only.
+a duplicated file) fails that record only.  A record whose file is another record's file (a hard link) or
+holds the same bytes, at the same preload, fails as a repeated measurement; a preload or force level
+written as a number in one record and as the same value in text in another refuses the manifest; a label
+with control characters fails its record.  Unit labels inside HDF5 / UFF record files are converted to SI
+(jointid.io.units); an unknown label or one of another kind is refused.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 import math
+import os
 import tomllib
+import unicodedata
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -236,6 +244,11 @@ def _label(value, key, ctx):
         raise ManifestError(f"{ctx}{key} must be finite, got {value!r}")
     if isinstance(value, str) and not (0 < len(value.strip()) <= 200):
         raise ManifestError(f"{ctx}{key} must be a text of 1 to 200 characters, got {len(value)} characters")
+    if isinstance(value, str):
+        bad = [c for c in value if unicodedata.category(c) in ("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp")]
+        if bad:
+            raise ManifestError(f"{ctx}{key} {value!r} holds a control or invisible character "
+                                f"(U+{ord(bad[0]):04X}); a label must be printable text")
     return value
 
 
@@ -367,11 +380,90 @@ def load_campaign(folder) -> Campaign:
                 period_s=period,
             )
         )
+    _check_label_types(records, manifest_path)
+    records = _refuse_repeated_data(records)
     structure = data.get("structure")
     if coordinates == "physical" and structure is None:
         raise ManifestError(f"{manifest_path}: a physical campaign needs a [structure] section")
     structures = _structures(structure, root, manifest_path)
     return Campaign(root, name, coordinates, tuple(records), structure, data, structures)
+
+
+def _check_label_types(records, manifest_path) -> None:
+    """A ManifestError when a preload or force level is a number in one record and the same value as a
+    text in another (``120`` and ``"120"``): they would make two groups that print alike."""
+    for key in ("preload", "force_level"):
+        first = {}  # value as a float -> (record index, value) of its first number / first text
+        for spec in records:
+            value = getattr(spec, key)
+            if value is None:
+                continue
+            is_text = isinstance(value, str)
+            try:
+                number = float(value.strip()) if is_text else float(value)
+            except ValueError:
+                continue
+            if not math.isfinite(number):
+                continue
+            seen = first.setdefault(number, {})
+            seen.setdefault(is_text, (spec.index, value))
+            if len(seen) == 2:
+                (i_num, v_num), (i_txt, v_txt) = seen[False], seen[True]
+                raise ManifestError(
+                    f"{manifest_path}: {key} {v_num!r} (a number) in record {i_num} and {v_txt!r} (text) in "
+                    f"record {i_txt}: write them alike (both numbers or both texts); as written they make "
+                    f"two groups that print the same"
+                )
+
+
+def _file_digest(path: Path) -> str:
+    h = hashlib.blake2b(digest_size=20)
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _refuse_repeated_data(records: list) -> list:
+    """Fail each record whose file is the file (hard link) or holds the bytes of an earlier record's file
+    at the same preload (whose records make one regression): a repeated measurement would count twice."""
+    candidates = []  # (spec, stat) of the records whose file is a readable regular file
+    for spec in records:
+        if spec.error:
+            continue
+        try:
+            st = os.stat(spec.path)
+        except OSError:
+            continue  # reported when the record is read
+        if not os.path.isfile(spec.path) or st.st_size > MAX_RECORD_BYTES:
+            continue
+        candidates.append((spec, st))
+    errors, by_inode, by_size = {}, {}, {}
+    for spec, st in candidates:
+        first = by_inode.setdefault((spec.preload, st.st_dev, st.st_ino), spec)
+        if first is not spec:
+            errors[spec.index] = (f"{where(spec.file, spec.index)}the same file as record {first.index} "
+                                  f"({first.file}, a hard link or alias); a repeated measurement would count "
+                                  f"twice, so this record is refused")
+        else:
+            by_size.setdefault((spec.preload, st.st_size), []).append(spec)
+    for same_size in by_size.values():  # hash only files whose size another file shares
+        if len(same_size) < 2:
+            continue
+        by_hash = {}
+        for spec in same_size:
+            try:
+                digest = _file_digest(spec.path)
+            except OSError:
+                continue
+            first = by_hash.setdefault(digest, spec)
+            if first is not spec:
+                errors[spec.index] = (f"{where(spec.file, spec.index)}same data as record {first.index} "
+                                      f"({first.file}): the files are byte for byte identical; a repeated "
+                                      f"measurement would count twice, so this record is refused")
+    if not errors:
+        return records
+    return [dataclasses.replace(r, error=errors[r.index]) if r.index in errors else r for r in records]
 
 
 def _read_csv(path: Path, spec: RecordSpec):
@@ -463,9 +555,42 @@ def _read_other(path: Path, spec: RecordSpec) -> dict:
     except ImportError as exc:  # pragma: no cover - format reader not installed
         raise RecordError(f"{where(spec.file, spec.index)}cannot read {suffix} files: {exc}") from exc
     ch = reader(path)
-    cols = {"time": np.asarray(ch.time, float)}
-    cols.update({k: np.asarray(v, float) for k, v in ch.data.items()})
+    time_unit = str(ch.meta.get("time_units", "") or "").strip()
+    if time_unit.lower() in ("", "s", "sec", "secs", "second", "seconds"):
+        time_factor = 1.0
+    elif time_unit == "ms":
+        time_factor = 1e-3
+    else:
+        raise RecordError(f"{where(spec.file, spec.index, 'time')}unknown time unit {time_unit!r} in the record "
+                          f"file; expected s or ms (convert the record with 'jointid import')")
+    cols = {"time": np.asarray(ch.time, float) * time_factor}
+    for name, values in ch.data.items():
+        factor = _si_factor(name, ch.units.get(name, ""), spec)
+        values = np.asarray(values, float)
+        cols[name] = values * factor if factor != 1.0 else values
     return cols
+
+
+def _si_factor(name: str, unit, spec: RecordSpec) -> float:
+    """Factor from the unit label a record file gives a channel to SI (jointid.io.units); an unknown
+    label, one of another kind than the channel (``accel`` in ``N``) or a mega prefix is refused."""
+    from .units import KINDS, UNITS, column_kind
+
+    label = str(unit or "").strip()
+    loc = where(spec.file, spec.index, name)
+    if label not in UNITS:  # names are case-sensitive, as SI prefixes are (mN, MN)
+        other_case = [u for u in UNITS if u and u.lower() == label.lower()]
+        hint = f" (unit names are case-sensitive: did you mean {' or '.join(map(repr, other_case))}?)" \
+            if other_case else ""
+        raise RecordError(f"{loc}unknown unit {label!r} in the record file{hint}; known units: "
+                          f"{', '.join(sorted(u for u in UNITS if u))} (convert the record with 'jointid import' "
+                          f"and a unit or scale)")
+    factor, dim = UNITS[label]
+    kind = column_kind(name)
+    if kind is not None and dim is not None and dim not in KINDS[kind]:
+        raise RecordError(f"{loc}unit {label!r} in the record file is not a unit of a {kind}; "
+                          f"expected one of {[u for u, (_, d) in UNITS.items() if d in KINDS[kind]]}")
+    return float(factor)
 
 
 def _toml_value(v) -> str:

@@ -384,7 +384,7 @@ def validate_channels(time: Any, data: Mapping[str, Any], *, source: str | None 
             i = sl.start + int(np.flatnonzero(steps <= 0)[0])
             raise RecordError(
                 f"{where(src, channel='time')}expected strictly increasing times, got "
-                f"t[{i + 1}] = {t[i + 1]!r} after t[{i}] = {t[i]!r}"
+                f"t[{i + 1}] = {float(t[i + 1]):.9g} s after t[{i}] = {float(t[i]):.9g} s"
             )
         dev = np.abs(steps - dt)
         j = int(np.argmax(dev))

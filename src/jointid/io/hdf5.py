@@ -74,11 +74,42 @@ def _attr_str(value: Any) -> str:
     return str(value)
 
 
+def check_no_external_link(h5, name: str, path, channel: str) -> None:
+    """Raise a :class:`RecordError` when a group or the dataset on the path ``name`` in the open file
+    ``h5`` is an HDF5 external link: it would be followed into another file (anywhere on the disk,
+    outside the data folder), so it is refused, checked before the link is followed."""
+    h5py = _h5py()
+    parts = [p for p in str(name).split("/") if p]
+    node, prefix = h5, ""
+    for part in parts:
+        prefix = f"{prefix}/{part}"
+        if not isinstance(node, h5py.Group) or part not in node:
+            return  # missing: said by the caller
+        link = node.get(part, getlink=True)
+        if isinstance(link, h5py.ExternalLink):
+            raise RecordError(
+                f"{where(path, channel=channel)}dataset {name!r}"
+                f"{'' if prefix == '/' + '/'.join(parts) else f': {prefix!r}'} is an HDF5 external link to "
+                f"{link.path!r} in file {link.filename!r}; external links are not followed (the data must "
+                f"be in the file itself: copy the dataset in)"
+            )
+        node = node.get(part)
+
+
 def check_dataset(ds, path, channel: str, name: str | None = None) -> None:
     """Raise a :class:`RecordError` unless ``ds`` holds real numbers (not text, compound or complex
     values) within the record limit (:data:`jointid.io.channels.MAX_SAMPLES` values), checked on
-    its type and shape before a byte is read (a compressed dataset may inflate far beyond its file)."""
+    its type and shape before a byte is read (a compressed dataset may inflate far beyond its file),
+    and lies in the file ``path`` itself (not reached through an external link)."""
     name = ds.name if name is None else name
+    try:
+        same_file = Path(ds.file.filename).resolve() == Path(path).resolve()
+    except (OSError, ValueError):  # pragma: no cover - an in-memory file has no path to compare
+        same_file = True
+    if not same_file:
+        raise RecordError(f"{where(path, channel=channel)}dataset {name!r} is reached through an HDF5 external "
+                          f"link into file {ds.file.filename!r}; external links are not followed (the data "
+                          f"must be in the file itself)")
     dt = ds.dtype
     if _h5py().check_enum_dtype(dt) is not None:  # integer codes of named states, not measured values
         raise RecordError(f"{where(path, channel=channel)}expected real numbers in dataset {name!r}, got an "
@@ -272,6 +303,7 @@ def read_hdf5(
         n_ref: tuple[str, int] | None = None
         for name in wanted:
             dpath = f"{cg.name.rstrip('/')}/{name}"
+            check_no_external_link(f, dpath, path, name)
             if name not in cg:
                 raise RecordError(
                     f"{where(path, channel=name)}expected dataset {dpath!r}, missing; "
@@ -307,6 +339,7 @@ def read_hdf5(
                 f"n_samples of {gname!r}), got {n} in {n_ref[0]!r}"
             )
         if "time" in g:
+            check_no_external_link(f, f"{g.name.rstrip('/')}/time", path, "time")
             tds = g["time"]
             tpath = tds.name
             if not isinstance(tds, h5py.Dataset) or tds.ndim != 1 or tds.shape[0] != n:
@@ -353,4 +386,6 @@ def read_hdf5(
                 )
         if "source" in g.attrs:
             meta.setdefault("original_source", _attr_str(g.attrs["source"]))
+        # the unit label of the time dataset as written (a time from fs is in s); read by the campaign reader
+        meta["time_units"] = _attr_str(g["time"].attrs.get("units", "")) if "time" in g else "s"
     return Channels(time=time, data=data, units=units, source=str(path), meta=meta)

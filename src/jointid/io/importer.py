@@ -141,11 +141,12 @@ def _read_hdf5_datasets(path: Path, channels: dict, fs=None, time=None) -> Chann
     import h5py
 
     data = {}
-    from .hdf5 import check_dataset
+    from .hdf5 import check_dataset, check_no_external_link
 
     try:
         with h5py.File(path, "r") as h5:
             for out, src in channels.items():
+                check_no_external_link(h5, src, path, out)  # before the link is followed
                 node = h5.get(src)
                 if not isinstance(node, h5py.Dataset):
                     raise RecordError(f"{path} [channel {out!r}]: no dataset {src!r} in the file")
@@ -157,7 +158,17 @@ def _read_hdf5_datasets(path: Path, channels: dict, fs=None, time=None) -> Chann
                     raise RecordError(f"{path} [channel {out!r}]: dataset {src!r} has shape {node.shape}, "
                                       "expected one dimension")
                 data[out] = x
+            lengths = {out: x.size for out, x in data.items()}
+            if len(set(lengths.values())) > 1:
+                (o1, n1), (o2, n2) = next(iter(lengths.items())), next(
+                    (o, n) for o, n in lengths.items() if n != next(iter(lengths.values())))
+                base = (f"the time dataset {time!r}" if time is not None else
+                        f"fs = {fs!r} Hz" if fs is not None else "no time base")
+                raise RecordError(f"{path} [channel {o2!r}]: dataset {channels[o2]!r} has {n2} samples, but "
+                                  f"dataset {channels[o1]!r} (channel {o1!r}) has {n1}; the channels of a record "
+                                  f"are sampled together, one length for all (time base: {base})")
             if time is not None:
+                check_no_external_link(h5, time, path, "time")
                 node = h5.get(time)
                 if not isinstance(node, h5py.Dataset):
                     raise RecordError(f"{path} [channel 'time']: no dataset {time!r} in the file")
@@ -276,7 +287,7 @@ def _split_map(channels: dict):
     for k, v in channels.items():
         if isinstance(v, dict):
             names[k] = v["channel"]
-            factors[k] = float(v.get("scale", 1.0)) * UNIT_FACTORS[v.get("unit", "").strip().lower()]
+            factors[k] = float(v.get("scale", 1.0)) * UNIT_FACTORS[v.get("unit", "").strip()]
         else:
             names[k] = v
     return names, factors
@@ -511,6 +522,27 @@ def _import_first_harmonic(entry, i, defaults, ctx, data_folder: Path, target: P
     write_first_harmonic_csv(target, rec)
 
 
+#: Relative disagreement between a given ``fs`` and the sampling rate of a file's own time base
+#: that is refused (time stamps rounded as text stay far within it over a record).
+FS_RTOL = 1e-3
+
+
+def _check_fs_agrees(part: Channels, fs, fs_key, i: int) -> None:
+    """A sampling rate ``fs`` given for a source whose file has its own time base (a time column or
+    dataset, a jointid HDF5 record, UFF abscissas) must agree with it; a conflict fails the record,
+    naming the key to drop, instead of one of the two being ignored."""
+    if fs is None or isinstance(fs, bool) or not isinstance(fs, (int, float)) or part.time.size < 2:
+        return
+    span = float(part.time[-1] - part.time[0])
+    if not span > 0:
+        return  # said by the checks of the time base
+    fs_file = (part.time.size - 1) / span
+    if abs(fs_file - float(fs)) > FS_RTOL * float(fs):
+        raise RecordError(f"{where(part.source, i, 'time')}{fs_key} = {float(fs):g} Hz disagrees with the time "
+                          f"base of the file ({fs_file:.6g} Hz from its time stamps); drop {fs_key} (the file's "
+                          f"time base is used; fs is for sources without one) or correct it")
+
+
 def _check_time_span(rec: Channels, entry: dict, i: int) -> None:
     """The record resolves its stated frequency and holds one period of it (or of its multisine)."""
     n = rec.time.size
@@ -580,9 +612,12 @@ def _import_records(d, desc, head, imp, defaults, records, data_folder, out, str
             for f, ch, t_name, s_fs in sources:
                 names, factors = _split_map(ch)
                 files.update((k, f) for k in names)
-                part = read_source(_source_path(data_folder, f, i), names,
-                                   fs=s_fs if s_fs is not None else entry.get("fs", imp.get("fs")),
+                fs_key = ("source fs" if s_fs is not None else "record fs" if "fs" in entry else
+                          "[import] fs" if "fs" in imp else None)
+                fs = s_fs if s_fs is not None else entry.get("fs", imp.get("fs"))
+                part = read_source(_source_path(data_folder, f, i), names, fs=fs,
                                    time=t_name if t_name is not None else entry.get("time", imp.get("time")))
+                _check_fs_agrees(part, fs, fs_key, i)
                 if factors:
                     part = Channels(part.time, {k: part.data[k] * factors.get(k, 1.0) for k in part.names},
                                     {k: ("SI" if k in factors else part.units.get(k, "")) for k in part.names},

@@ -32,7 +32,9 @@ MATLAB v7.3 files
 -----------------
 v7.3 MAT files are HDF5 files.  None of the shared data sets uses v7.3, so they are not
 read here: :func:`read_mat` raises a :class:`~jointid.errors.RecordError` that says so
-(open such files with h5py or save them with ``-v7``).
+(save them with ``-v7``, or read them as HDF5 files by dataset path).
+
+Complex variables are refused (not reduced to their real part).
 """
 
 from __future__ import annotations
@@ -175,24 +177,43 @@ def _check_path(path: str | os.PathLike) -> Path:
         head = fh.read(128)
     if head.startswith(b"MATLAB 7.3") or head[:4] == b"\x89HDF" or b"MATLAB 7.3" in head[:116]:
         raise RecordError(
-            f"{where(path)}this is a MATLAB v7.3 (HDF5) MAT file, which read_mat does not "
-            f"read (no shared data set needs it); open it with h5py or re-save it in MATLAB "
-            f"with save(..., '-v7')"
+            f"{where(path)}this is a MATLAB v7.3 (HDF5) MAT file, which is not read as a MAT file; "
+            f"re-save it in MATLAB with save(..., '-v7'), or read it as an HDF5 file (name it .h5 and "
+            f"give each channel as a dataset path, e.g. \"/force\")"
         )
     return path
 
 
 def _load(path: Path, names: list[str]) -> dict[str, Any]:
+    """Load the variables ``names`` in MATLAB's own classes (a logical array reads as bool, not as
+    uint8 0/1 samples).  A complex variable is returned as stored, complex: with ``mat_dtype=True``
+    scipy would cast it to its class ``double`` and keep only the real part (a ComplexWarning), so
+    such variables are read again without that cast; the callers refuse or use the complex values.
+    """
+    import warnings
+
     from scipy.io import loadmat
 
+    complex_warning = getattr(getattr(np, "exceptions", np), "ComplexWarning")
+    kwargs = dict(squeeze_me=True, struct_as_record=False)
+
+    def load(variables, mat_dtype):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", complex_warning)
+            return loadmat(str(path), mat_dtype=mat_dtype, variable_names=variables, **kwargs)
+
     try:
-        return loadmat(
-            str(path),
-            squeeze_me=True,
-            struct_as_record=False,
-            variable_names=names,
-            mat_dtype=True,  # MATLAB's own class: a logical array reads as bool, not as uint8 0/1 samples
-        )
+        try:
+            return load(names, True)
+        except complex_warning:
+            pass
+        loaded: dict[str, Any] = {}
+        for name in names:  # which variables are complex
+            try:
+                loaded.update(load([name], True))
+            except complex_warning:
+                loaded.update(load([name], False))
+        return loaded
     except Exception as exc:
         raise RecordError(f"{where(path)}cannot read the MAT file: {exc}") from exc
 
@@ -431,6 +452,9 @@ def read_mat(
             if _is_testlab(obj):
                 obj = obj.y_values.values
             time_vec = _orient(path, np.asarray(obj), idx, None, "time", time, None)
+            if np.iscomplexobj(time_vec):
+                raise RecordError(f"{where(path, channel='time')}expected real time stamps in {time!r}, got "
+                                  f"complex values")
         else:
             time_vec = np.asarray(time, dtype=float)
         n_expected = int(time_vec.size)
@@ -439,7 +463,7 @@ def read_mat(
         if isinstance(fs, str):
             obj, _ = _walk(path, loaded, fs, "fs")
             arr = np.asarray(obj)
-            if arr.size != 1 or not np.issubdtype(arr.dtype, np.number):
+            if arr.size != 1 or not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
                 raise RecordError(
                     f"{where(path)}expected {fs!r} to hold a scalar sampling rate, got "
                     f"shape {arr.shape} dtype {arr.dtype}"
@@ -499,7 +523,9 @@ def read_mat(
             vec = _orient(path, np.asarray(obj), index, n_hint, name, str(ref), None)
         if np.iscomplexobj(vec):
             raise RecordError(
-                f"{where(path, channel=name)}expected real samples in {str(ref)!r}, got complex values"
+                f"{where(path, channel=name)}expected real samples in {str(ref)!r}, got complex values; they "
+                f"are not reduced to their real part (save the real signal, or its real and imaginary parts "
+                f"as two real variables)"
             )
         data[name] = np.asarray(vec, dtype=np.float64)
 

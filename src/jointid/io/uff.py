@@ -314,7 +314,7 @@ def _uneven_time(path: Path, x: np.ndarray, label: str) -> tuple[float, float]:
         k = int(np.argmax(dev))
         raise RecordError(
             f"{where(path, channel=label)}expected a uniform time abscissa, got sample {k} at "
-            f"{x[k]!r} s, {dev[k]:.3g} s away from the uniform grid (dt = {dt:.9g} s)"
+            f"{float(x[k]):.9g} s, {dev[k]:.3g} s away from the uniform grid (dt = {dt:.9g} s)"
         )
     return float(x[0]), float(dt)
 
@@ -486,6 +486,8 @@ def read_uff(
             t0, dt = _uneven_time(path, d["x"], name)
         if ref is None:
             ref = (name, t0, dt, values.size)
+            time_units = str(d.get("abscissa_axis_units_lab", "")).strip()
+            time_units = "" if _is_none(time_units) else time_units
         else:
             rname, rt0, rdt, rn = ref
             if values.size != rn:
@@ -519,5 +521,6 @@ def read_uff(
             "format": "uff58b" if binary_any else "uff58",
             "labels": labels,
             "skipped": skipped,
+            "time_units": time_units,
         },
     )

@@ -25,17 +25,21 @@ VOLTAGE = (1, 2, -3, -1)
 FREQUENCY = (0, 0, -1, 0)
 ANGLE = "angle"  # dimensionless, but not to be mixed with a plain number
 
-#: Unit name (lower case) -> (factor to SI, dimension).  ``""`` and ``"si"`` are SI of any dimension.
+#: Unit name -> (factor to SI, dimension).  Names are case-sensitive, as SI prefixes are (``mN`` is a
+#: milli-newton, ``MN`` a mega-newton, not in the table); ``""`` and ``"SI"`` are SI of any dimension.
+#: A few spellings in another case are kept where no other unit is spelt so (``hz``, ``si``).
 UNITS = {
-    "": (1.0, None), "si": (1.0, None),
+    "": (1.0, None), "SI": (1.0, None), "si": (1.0, None),
     "s": (1.0, TIME), "ms": (1e-3, TIME),
-    "n": (1.0, FORCE), "kn": (1e3, FORCE), "mn": (1e-3, FORCE), "lbf": (4.4482216152605, FORCE),
+    "N": (1.0, FORCE), "kN": (1e3, FORCE), "mN": (1e-3, FORCE), "lbf": (4.4482216152605, FORCE),
     "m/s^2": (1.0, ACCELERATION), "m/s2": (1.0, ACCELERATION), "mm/s^2": (1e-3, ACCELERATION),
+    "mm/s2": (1e-3, ACCELERATION),
     "g": (9.80665, ACCELERATION), "mg": (9.80665e-3, ACCELERATION),
     "m/s": (1.0, VELOCITY), "mm/s": (1e-3, VELOCITY), "in/s": (0.0254, VELOCITY),
-    "m": (1.0, LENGTH), "mm": (1e-3, LENGTH), "um": (1e-6, LENGTH), "in": (0.0254, LENGTH),
-    "v": (1.0, VOLTAGE), "mv": (1e-3, VOLTAGE),
-    "hz": (1.0, FREQUENCY),
+    "m": (1.0, LENGTH), "mm": (1e-3, LENGTH), "um": (1e-6, LENGTH), "\u00b5m": (1e-6, LENGTH),
+    "in": (0.0254, LENGTH),
+    "V": (1.0, VOLTAGE), "mV": (1e-3, VOLTAGE),
+    "Hz": (1.0, FREQUENCY), "hz": (1.0, FREQUENCY),
     "rad": (1.0, ANGLE), "deg": (math.pi / 180, ANGLE), "degree": (math.pi / 180, ANGLE),
     "degrees": (math.pi / 180, ANGLE),
 }
@@ -63,13 +67,13 @@ _DIM_NAMES = {TIME: "time", FORCE: "force", VOLTAGE: "voltage", ACCELERATION: "a
 
 
 def unit_factor(unit: str) -> float:
-    """Factor from ``unit`` to SI (KeyError for an unknown unit)."""
-    return UNITS[str(unit).strip().lower()][0]
+    """Factor from ``unit`` to SI (KeyError for an unknown unit; names are case-sensitive)."""
+    return UNITS[str(unit).strip()][0]
 
 
 def unit_dimension(unit: str):
     """Dimension of ``unit`` (``None``: SI of any dimension; KeyError for an unknown unit)."""
-    return UNITS[str(unit).strip().lower()][1]
+    return UNITS[str(unit).strip()][1]
 
 
 def column_kind(column: str) -> str | None:
@@ -92,10 +96,13 @@ def column_kind(column: str) -> str | None:
 def check_column_unit(column: str, unit: str, context: str = "") -> None:
     """Raise a :class:`ManifestError` when ``unit`` is unknown or of another dimension than the
     column's kind (``context`` names the file and record)."""
-    key = str(unit).strip().lower()
+    key = str(unit).strip()
     if key not in UNITS:
-        raise ManifestError(f"{context}channels.{column}: unknown unit {unit!r}; known: "
-                            f"{sorted(u for u in UNITS if u)} (or give scale)")
+        other_case = [u for u in UNITS if u and u.lower() == key.lower()]
+        hint = (f" (unit names are case-sensitive, as SI prefixes are: m is milli, M mega; did you mean "
+                f"{' or '.join(repr(u) for u in other_case)}?)" if other_case else "")
+        raise ManifestError(f"{context}channels.{column}: unknown unit {unit!r}{hint}; known: "
+                            f"{', '.join(u for u in UNITS if u)} (or give scale)")
     kind = column_kind(column)
     dim = UNITS[key][1]
     if kind is None or dim is None or dim in KINDS[kind]:
