@@ -140,3 +140,13 @@ def test_hdf5_lengths_differ_with_fs_names_both_datasets_not_a_time_vector(tmp_p
     assert code == 2, err
     assert "time vector" not in err and "'A'" in err and "'F'" in err and "1948" in err and "2048" in err, err
     assert "fs = 512.0 Hz" in err, err
+
+
+def test_a_csv_column_named_twice_is_refused(tmp_path, capsys):
+    t, F, a = _signals(fs=2000.0)
+    np.savetxt(tmp_path / "r.csv", np.column_stack([t, F, 2 * F, a]), delimiter=",", header="time,F,F,A",
+               comments="", fmt="%.6g")
+    desc = _describe(tmp_path, "r.csv", 'channels = { force = "F", accel = "A" }')
+    code, _, err = _run(["import", desc, "--out", tmp_path / "c"], capsys)
+    assert code == 2 and "r.csv" in err and "'F'" in err and "more than once" in err, err
+    assert not (tmp_path / "c").exists()

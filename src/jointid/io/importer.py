@@ -238,6 +238,10 @@ def read_source(path: Path, channels: dict, fs=None, time=None) -> Channels:
             raise RecordError(f"{path} [channel {missing[0]!r}]: missing column; found {header}")
         if rows.shape[1] != len(header):
             raise RecordError(f"{path}: header names {len(header)} columns but rows have {rows.shape[1]}")
+        twice = sorted({h for h in header if header.count(h) > 1} & ({tname} | set(channels.values())))
+        if twice:
+            raise RecordError(f"{path} [channel {twice[0]!r}]: the header names column {twice[0]!r} more than "
+                              "once; which one is meant cannot be told: rename one")
         t = rows[:, header.index(tname)] if tname in header else _uniform_time(rows.shape[0], fs, path, "")
         data = {out: rows[:, header.index(src)] for out, src in channels.items()}
         # time stamps written as text: the campaign's tolerance, then the uniform grid they stand for
