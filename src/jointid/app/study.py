@@ -62,7 +62,7 @@ import numpy as np
 
 from ..errors import JointidError, JointidWarning, ManifestError, unknown_key_message
 from .records import IdentifySettings
-from .synthesis import _INF, _SPECS, _TABLES, MAX_SEED, _check_value, _describe, _is_number
+from .synthesis import _INF, _SPECS, _TABLES, MAX_SEED, _check_value, _describe, _is_number, check_campaign_size
 from .synthesis import check_simulation_tables as _check_simulation_tables
 
 __all__ = [
@@ -141,8 +141,7 @@ def _check_distribution(path, spec, source):
 # bounds of a plan that a 2-core / 24 GiB machine runs (stated in docs/formats.md, "Study plan")
 MAX_CAMPAIGNS = 100_000  # campaigns of a study, all grid points together
 MAX_GRID_POINTS = 1_000
-MAX_CAMPAIGN_RECORDS = 5_000  # preloads x force levels x frequencies
-MAX_RECORD_SAMPLES = 2_000_000  # fs x periods / lowest frequency
+# the size of one campaign: jointid.app.synthesis.MAX_CAMPAIGN_RECORDS and MAX_RECORD_SAMPLES
 
 
 def _path_spec(path):
@@ -243,17 +242,10 @@ def _check_campaign_size(simulation, vary, grid, source):
     n_levels = max(_candidates(simulation, vary, grid, "excitation.force_levels", counts=True) or [1])
     n_freq = max(c("excitation.n_frequencies", 41) + _candidates(simulation, vary, grid, "excitation.frequencies_hz",
                                                                   counts=True))
-    n_records = n_models * n_levels * n_freq
-    if n_records > MAX_CAMPAIGN_RECORDS:
-        raise ManifestError(f"{source}: a campaign can hold {n_models} preload(s) x {n_levels} force level(s) x "
-                            f"{n_freq} frequencies = {n_records} records; at most {MAX_CAMPAIGN_RECORDS} allowed")
     f_low = min([w / (2 * math.pi) for w in c("excitation.omega_start", _INF) + c("excitation.omega_stop", _INF)]
                 + _candidates(simulation, vary, grid, "excitation.frequencies_hz") + [_INF])
     fs, periods = max(c("acquisition.fs", 5000.0)), max(c("acquisition.periods", 20.0))
-    if f_low < _INF and f_low > 0 and fs * periods / f_low > MAX_RECORD_SAMPLES:
-        raise ManifestError(f"{source}: a record can hold fs x periods / lowest frequency = {fs:g} x {periods:g} / "
-                            f"{f_low:.4g} Hz = {fs * periods / f_low:.3g} samples; at most {MAX_RECORD_SAMPLES:g} "
-                            f"allowed (lower [acquisition] fs or periods)")
+    check_campaign_size(n_models, n_levels, n_freq, fs, periods, f_low, source)
 
 
 def _check_identify_table(ident, source):

@@ -63,6 +63,10 @@ MAX_PRELOADS = 20  # [[model]] tables of a campaign
 MAX_LEVELS = 50  # force levels (also the largest `size` of a draw)
 MAX_FREQUENCIES = 1_000
 MAX_LAW_ORDER = 10
+# a campaign that one worker simulates and identifies (stated in docs/formats.md, "Study plan"); a
+# simulation configuration and every campaign a study plan can draw are held to them
+MAX_CAMPAIGN_RECORDS = 5_000  # preloads x force levels x frequencies
+MAX_RECORD_SAMPLES = 2_000_000  # fs x periods / lowest frequency
 _INF = float("inf")
 
 # what a key of the simulation tables holds: ("number", low, high, low excluded), ("int", low, high),
@@ -168,6 +172,36 @@ def check_simulation_tables(d, source):
                 _check_value(_SPECS[(name, k)], v, f"{source}: [{name}] {k}")
 
 
+def check_campaign_size(n_models, n_levels, n_freq, fs, periods, f_low, source) -> None:
+    """Records per campaign and samples per record stay within what one worker simulates and identifies.
+
+    ``f_low`` is the lowest excitation frequency [Hz] (``inf`` when not known); a ManifestError otherwise.
+    """
+    n_records = n_models * n_levels * n_freq
+    if n_records > MAX_CAMPAIGN_RECORDS:
+        raise ManifestError(f"{source}: a campaign can hold {n_models} preload(s) x {n_levels} force level(s) x "
+                            f"{n_freq} frequencies = {n_records} records; at most {MAX_CAMPAIGN_RECORDS} allowed")
+    if f_low < _INF and f_low > 0 and fs * periods / f_low > MAX_RECORD_SAMPLES:
+        raise ManifestError(f"{source}: a record can hold fs x periods / lowest frequency = {fs:g} x {periods:g} / "
+                            f"{f_low:.4g} Hz = {fs * periods / f_low:.3g} samples; at most {MAX_RECORD_SAMPLES:g} "
+                            f"allowed (lower [acquisition] fs or periods)")
+
+
+def _check_preloads(models, source) -> None:
+    """Each ``[[model]]`` table has its own preload label (records are grouped by it)."""
+    seen = {}
+    for i, m in enumerate(models, 1):
+        p = m.get("preload", "sim")
+        key = str(p)
+        if key in seen:
+            j, q = seen[key]
+            what = (f"both have preload {p!r}" if q == p and type(q) is type(p)
+                    else f"have preloads {q!r} and {p!r}, one label in the records")
+            raise ManifestError(f"{source}: [[model]] tables {j} and {i} {what}: their records would be mixed "
+                                f"into one preload; give each [[model]] its own preload")
+        seen[key] = (i, p)
+
+
 def model_from_mapping(d: dict, source="config") -> SingleModeModel:
     """Build a :class:`SingleModeModel` from a ``[model]`` table."""
     try:
@@ -227,8 +261,15 @@ def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
         raise ManifestError(f"{source}: a [model] table is required")
     if isinstance(models, dict):
         models = [models]
-    parsed = tuple((m.get("preload", "sim"), model_from_mapping(m, source)) for m in models)
+    _check_preloads(models, source)
     ex = d.get("excitation", {})
+    if "frequencies_hz" in ex:
+        both = [k for k in ("omega_start", "omega_stop", "n_frequencies") if k in ex]
+        if both:
+            raise ManifestError(f"{source}: [excitation] gives both frequencies_hz and {'/'.join(both)}; keep one: "
+                                f"frequencies_hz (the list of frequencies) or omega_start/omega_stop/n_frequencies "
+                                f"(an even sweep)")
+    parsed = tuple((m.get("preload", "sim"), model_from_mapping(m, source)) for m in models)
     if "frequencies_hz" in ex:
         omegas = 2 * np.pi * np.asarray(ex["frequencies_hz"], float)
     else:
@@ -258,6 +299,8 @@ def load_simulation_config(path_or_dict, source=None) -> SimulationConfig:
         raise ManifestError(f"{source}: fs = {cfg.fs} Hz is below twice the highest excitation frequency")
     if cfg.periods < 2:
         raise ManifestError(f"{source}: periods must be at least 2, got {cfg.periods}")
+    check_campaign_size(len(parsed), len(levels), int(omegas.size), cfg.fs, cfg.periods,
+                        float(omegas.min()) / (2 * np.pi), source)
     for preload, model in parsed:
         _check_damping(model, model.coefficients, _model_where(source, preload, len(parsed)))
     return cfg

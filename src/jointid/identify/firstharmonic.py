@@ -504,7 +504,18 @@ def _start(levels, fl, dl, a_ref):
     return np.array([m0, 0.0, 0.0, f0] + fl.start() + [zeta0] + dl.start(), float), a_ref
 
 
-def _solve(levels, fl, dl, a_ref, x0, max_nfev=4000):
+NFEV_PER_PARAMETER = 50  # evaluations of the residuals a fit may take, per parameter
+
+
+def _solve(levels, fl, dl, a_ref, x0, max_nfev=None):
+    """One bounded least-squares fit; ``max_nfev`` defaults to :data:`NFEV_PER_PARAMETER` x the parameters.
+
+    The fits of a measured campaign converge in a few times the number of parameters (the
+    Brake-Reuss beam's 20 candidate laws in at most 18 x); one that has not converged at the
+    bound is reported unconverged (``sol.status == 0``, :func:`_unconverged`) instead of running on.
+    """
+    if max_nfev is None:
+        max_nfev = NFEV_PER_PARAMETER * len(x0)
     w, a, H = _stack(levels)
     model = FirstHarmonicModel(fl, dl, a_ref, x0)
     scale = np.abs(H)
@@ -522,6 +533,16 @@ def _solve(levels, fl, dl, a_ref, x0, max_nfev=4000):
     except ValueError as exc:  # residuals not finite at the start (a degenerate level)
         raise IdentificationError(f"the first-harmonic fit cannot start: {exc}") from None
     return sol, model.with_params(sol.x), resid
+
+
+def _unconverged(sol, what="the first-harmonic fit"):
+    """The IdentificationError of a fit that did not converge (the evaluation bound reached or another reason)."""
+    if sol.status == 0:
+        return IdentificationError(f"{what} did not converge within {sol.nfev} evaluations of the residuals "
+                                   f"({NFEV_PER_PARAMETER} per parameter, {sol.x.size} parameters; a fit the "
+                                   f"levels support converges in a few per parameter): check each level's force and "
+                                   f"acceleration units and phases, or use simpler laws")
+    return IdentificationError(f"{what} did not converge: {sol.message}")
 
 
 def _covariance(sol, model, levels):
@@ -612,7 +633,7 @@ def fit_first_harmonic(levels, frequency_law="poly2", damping_law="poly1", *, a_
     notes = []
     sol, model, _ = _fit_core(levels, fl, dl, a_ref)
     if not sol.success:
-        raise IdentificationError(f"the first-harmonic fit did not converge: {sol.message}")
+        raise _unconverged(sol)
     cov, s, cond = _covariance(sol, model, levels)
     if cond > 1e12:
         notes.append(f"ill-conditioned fit (condition number {cond:.2g}): the laws are more flexible than the "
@@ -628,6 +649,8 @@ def fit_first_harmonic(levels, frequency_law="poly2", damping_law="poly1", *, a_
         low = min(levels, key=lambda lv: float(np.max(lv.accel)))
         try:
             lsol, lmodel, _ = _fit_core((low,), AmplitudeLaw("poly1"), AmplitudeLaw("poly1"), a_ref)
+            if not lsol.success:
+                raise _unconverged(lsol, "the fit of the lowest level alone")
             lcov, ls, _ = _covariance(lsol, lmodel, (low,))
             mc, mse = float(lsol.x[0]), float(np.sqrt(lcov[0, 0]))
             mj, mjse = float(sol.x[0]), float(np.sqrt(cov[0, 0]))
@@ -645,18 +668,25 @@ def fit_first_harmonic(levels, frequency_law="poly2", damping_law="poly1", *, a_
                             int(sol.nfev))
 
 
-def leave_one_level_out(levels, frequency_law="poly2", damping_law="poly1", a_ref=None) -> list:
+def leave_one_level_out(levels, frequency_law="poly2", damping_law="poly1", a_ref=None, *,
+                        stop_at_error=False) -> list:
     """Fit on all levels but one, re-predict that one from its measured forces; one entry per level.
 
     Each entry: ``label``, the :class:`LevelPrediction` (``prediction``) and its ``peaks()``,
-    or ``error`` when the fit on the other levels fails.
+    or ``error`` when the fit on the other levels fails.  With ``stop_at_error`` the levels after
+    the first failure are not fitted (their ``error`` says so): a candidate that fails once
+    scores ``inf`` in :func:`select_laws` whatever the others give.
     """
     levels = tuple(levels)
     if len(levels) < 2:
         raise IdentificationError("leave-one-level-out needs at least two levels")
     a_ref = float(a_ref) if a_ref is not None else float(max(np.max(lv.accel) for lv in levels))
     out = []
+    failed = None
     for j, lv in enumerate(levels):
+        if failed is not None:
+            out.append({"label": lv.label, "error": f"not fitted: the fit leaving out level {failed} failed"})
+            continue
         rest = levels[:j] + levels[j + 1:]
         try:
             fit = fit_first_harmonic(rest, frequency_law, damping_law, a_ref=a_ref, repredict=False, low_level=False)
@@ -666,6 +696,8 @@ def leave_one_level_out(levels, frequency_law="poly2", damping_law="poly1", a_re
                         "complex_rms_rel": pr.complex_rms_rel})
         except (IdentificationError, np.linalg.LinAlgError) as exc:
             out.append({"label": lv.label, "error": str(exc)})
+            if stop_at_error:
+                failed = lv.label
     return out
 
 
@@ -685,7 +717,7 @@ def select_laws(levels, candidates=DEFAULT_CANDIDATES, a_ref=None) -> dict:
     for fl, dl in candidates:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", (JointidWarning, RuntimeWarning))
-            lolo = leave_one_level_out(levels, fl, dl, a_ref)
+            lolo = leave_one_level_out(levels, fl, dl, a_ref, stop_at_error=True)
         errs = [e.get("complex_rms_rel", np.inf) for e in lolo]
         score = float(np.sqrt(np.mean(np.square(errs)))) if np.all(np.isfinite(errs)) else np.inf
         # standard error of the RMS from that of the mean square (delta method)
