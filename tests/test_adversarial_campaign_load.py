@@ -142,6 +142,20 @@ def test_hdf5_unknown_or_wrong_unit_refused(tmp_path, unit):
     assert "records/r.h5 [record 0, channel 'force']" in msg and repr(unit) in msg
 
 
+def test_a_channel_not_read_by_its_name_keeps_an_unknown_unit(tmp_path):
+    """A record file's extra channel (a temperature, a shaker current) in a unit outside the table does not fail
+    the record: only the channels jointid reads by their kind are converted or refused."""
+    t, f, a = _signal(0)
+    (tmp_path / "records").mkdir()
+    rec = Channels.from_arrays({"force": f, "accel": a, "temperature": 20 + 0 * t}, time=t,
+                               units={"force": "N", "accel": "m/s^2", "temperature": "degC"})
+    _h5(tmp_path / "records" / "r.h5", rec)
+    write_campaign(tmp_path, "c", [{"file": "records/r.h5", "force_level": 1.0, "preload": 120}])
+    got = read_record(load_campaign(tmp_path).records[0])
+    np.testing.assert_allclose(got.channels["force"], f, rtol=1e-12)
+    np.testing.assert_allclose(got.channels["temperature"], 20.0)
+
+
 def test_hdf5_time_in_ms_converted_and_unknown_refused(tmp_path):
     import h5py
 

@@ -52,7 +52,8 @@ def test_complex_mat_variable_is_refused_not_reduced_to_its_real_part(tmp_path, 
     assert code == 0, err
 
 
-@pytest.mark.parametrize("unit, hint", [("MN", "'mN'"), ("KN", "'kN'"), ("n", "'N'"), ("MV", "'mV'")])
+# a capital M is a mega prefix: never "corrected" to milli (a factor 1e9 from what was written)
+@pytest.mark.parametrize("unit, hint", [("MN", "M mega)"), ("KN", "'kN'"), ("n", "'N'"), ("MV", "M mega)")])
 def test_units_are_case_sensitive(tmp_path, capsys, unit, hint):
     with pytest.raises(ManifestError) as info:
         check_column_unit("force", unit, "d.toml: ")

@@ -53,6 +53,7 @@ CASES = {
                      .replace("n_frequencies = 9", "n_frequencies = 1000"), r"6000 records; at most 5000"),
     "two_models_same_preload": (_with_second_model("120"), r"\[\[model\]\] tables 1 and 2 both have preload 120"),
     "two_models_120_and_text": (_with_second_model('"120"'), r"preloads 120 and '120'"),
+    "two_models_120_and_120.0": (_with_second_model("120.0"), r"preloads 120 and 120\.0"),
     "two_models_default_preload": (_with_second_model('"sim"').replace("preload = 120\n", ""),
                                    r"both have preload 'sim'"),
     "freqs_and_omega": (BASE.replace("n_frequencies = 9", "n_frequencies = 9\nfrequencies_hz = [27.0, 27.5]"),

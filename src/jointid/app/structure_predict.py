@@ -34,7 +34,7 @@ from ..io.structure_model import read_structure_model, stuck_stiffness
 from ..simulate.structure import structure_from_spec
 from ..simulate.nlmodes import epmc_backbone
 from ..simulate.structure_hb import default_n_time, to_complex
-from ..simulate.structure_timeint import integrate_structure
+from ..simulate.structure_timeint import TooStiffError, integrate_structure
 
 __all__ = ["StructurePrediction", "predict_structure", "write_structure_predictions", "located_peak"]
 
@@ -205,13 +205,15 @@ class StructurePrediction:
             if b.error:
                 out.append(head + f"FAILED: {b.error}")
         if self.time_checks:
-            done = [c for c in self.time_checks if not c["error"]]
+            done = [c for c in self.time_checks if c["relative_difference"] is not None]
             txt = ", ".join(f"{c['relative_difference']:.1e} (F = {c['force_level']:g} N at {c['frequency_hz']:.6g} Hz)"
                             for c in done)
-            bad = [c for c in self.time_checks if c["error"]]
             out.append(f"time integration from the peaks ({self.time_checks[0]['periods']} periods, DOP853): "
                        f"fundamental at the response DOFs differs from the harmonic balance by {txt or 'none'}"
-                       + "".join(f"; F = {c['force_level']:g} N: FAILED: {c['error']}" for c in bad)
+                       + "".join(f"; F = {c['force_level']:g} N: FAILED: {c['error']}" for c in self.time_checks
+                                 if c["error"])
+                       + "".join(f"; F = {c['force_level']:g} N: not done: {c['not_done']}"
+                                 for c in self.time_checks if c.get("not_done"))
                        + f"; {sum(c['cost_s'] for c in self.time_checks):.3g} s")
         out.extend(f"WARNING: {w}" for w in self.warnings)
         return out
@@ -270,7 +272,7 @@ def _time_checks(st, levels, response, n_points, periods=TIME_CHECK_PERIODS) -> 
     for lv in picks[:max(int(n_points), 0)]:
         p = lv.peak_point
         row = {"frequency_hz": float(p.frequency_hz), "force_level": lv.force_level, "relative_difference": None,
-               "periods": int(periods), "n_steps": None, "cost_s": 0.0, "error": ""}
+               "periods": int(periods), "n_steps": None, "cost_s": 0.0, "error": "", "not_done": ""}
         t0 = time.process_time()
         try:
             r = integrate_structure(st, p, dofs=response, n_periods=periods, rtol=1e-7,
@@ -279,6 +281,8 @@ def _time_checks(st, levels, response, n_points, periods=TIME_CHECK_PERIODS) -> 
             if not math.isfinite(r.relative_difference):
                 row.update(relative_difference=None, error="the fundamental of the time integration or of the "
                                                            "harmonic balance is not a finite number")
+        except TooStiffError as exc:  # not done: a note, not a failure of the prediction
+            row["not_done"] = (f"{exc}; keep the modes the band needs ([model] n_modes) or give --time-check 0")
         except ConvergenceError as exc:
             row["error"] = str(exc)
         row["cost_s"] = time.process_time() - t0
@@ -385,12 +389,13 @@ def predict_structure(model_toml, *, force_levels=None, frequency_range=None, n_
     settings["time_check_points"] = n_checks
     checks = _time_checks(st, out, response, n_checks)
     if progress and checks:
-        done = [c for c in checks if not c["error"]]
+        done = [c for c in checks if c["relative_difference"] is not None]
         bad = [c for c in checks if c["error"]]
-        progress(f"time integration from {len(checks)} peak(s): "
-                 + (f"fundamental within {max(c['relative_difference'] for c in done):.1e}" if done else "")
-                 + ("; " if done and bad else "")
-                 + (f"{len(bad)} FAILED ({bad[0]['error']})" if bad else ""))
+        skipped = [c for c in checks if c["not_done"]]
+        parts = ([f"fundamental within {max(c['relative_difference'] for c in done):.1e}"] if done else []) \
+            + ([f"{len(bad)} FAILED ({bad[0]['error']})"] if bad else []) \
+            + ([f"{len(skipped)} not done ({skipped[0]['not_done']})"] if skipped else [])
+        progress(f"time integration from {len(checks)} peak(s): " + "; ".join(parts))
     flags = _model_warnings(st, spec, band) + _backbone_warnings(backbones)
     return StructurePrediction(spec.path, model, settings, out, backbones, checks, flags)
 

@@ -189,17 +189,18 @@ def check_campaign_size(n_models, n_levels, n_freq, fs, periods, f_low, source) 
 
 def _check_preloads(models, source) -> None:
     """Each ``[[model]]`` table has its own preload label (records are grouped by it)."""
-    seen = {}
+    from ..io.campaign import _same_label
+
+    seen = []
     for i, m in enumerate(models, 1):
         p = m.get("preload", "sim")
-        key = str(p)
-        if key in seen:
-            j, q = seen[key]
-            what = (f"both have preload {p!r}" if q == p and type(q) is type(p)
-                    else f"have preloads {q!r} and {p!r}, one label in the records")
-            raise ManifestError(f"{source}: [[model]] tables {j} and {i} {what}: their records would be mixed "
-                                f"into one preload; give each [[model]] its own preload")
-        seen[key] = (i, p)
+        for j, q in seen:
+            if _same_label(q, p):  # "120", 120 and 120.0 name one group
+                what = (f"both have preload {p!r}" if q == p and type(q) is type(p)
+                        else f"have preloads {q!r} and {p!r}, one label in the records")
+                raise ManifestError(f"{source}: [[model]] tables {j} and {i} {what}: their records would be "
+                                    f"mixed into one preload; give each [[model]] its own preload")
+        seen.append((i, p))
 
 
 def model_from_mapping(d: dict, source="config") -> SingleModeModel:

@@ -594,7 +594,8 @@ def _fit_core(levels, fl, dl, a_ref):
     for fs in starts:
         x = np.array(base + fs + [sol0.x[4]] + dl.start(), float)
         sol, model, resid = _solve(levels, fl, dl, a_ref, x)
-        if best is None or sol.cost < best[0].cost:
+        # a converged start beats one stopped at the evaluation cap, whatever their costs
+        if best is None or (sol.success, -sol.cost) > (best[0].success, -best[0].cost):
             best = (sol, model, resid)
     return best
 

@@ -440,7 +440,8 @@ def _refuse_repeated_data(records: list) -> list:
         candidates.append((spec, st))
     errors, by_inode, by_size = {}, {}, {}
     for spec, st in candidates:
-        first = by_inode.setdefault((spec.preload, st.st_dev, st.st_ino), spec)
+        # st_ino is unique only when non-zero (some network and FUSE file systems give 0): then the hash decides
+        first = by_inode.setdefault((spec.preload, st.st_dev, st.st_ino), spec) if st.st_ino else spec
         if first is not spec:
             errors[spec.index] = (f"{where(spec.file, spec.index)}the same file as record {first.index} "
                                   f"({first.file}, a hard link or alias); a repeated measurement would count "
@@ -574,19 +575,18 @@ def _read_other(path: Path, spec: RecordSpec) -> dict:
 def _si_factor(name: str, unit, spec: RecordSpec) -> float:
     """Factor from the unit label a record file gives a channel to SI (jointid.io.units); an unknown
     label, one of another kind than the channel (``accel`` in ``N``) or a mega prefix is refused."""
-    from .units import KINDS, UNITS, column_kind
+    from .units import KINDS, UNITS, case_hint, column_kind
 
     label = str(unit or "").strip()
     loc = where(spec.file, spec.index, name)
+    kind = column_kind(name)
+    if label not in UNITS and kind is None:
+        return 1.0  # a channel jointid does not read by its name (a temperature, a current): left as it is
     if label not in UNITS:  # names are case-sensitive, as SI prefixes are (mN, MN)
-        other_case = [u for u in UNITS if u and u.lower() == label.lower()]
-        hint = f" (unit names are case-sensitive: did you mean {' or '.join(map(repr, other_case))}?)" \
-            if other_case else ""
-        raise RecordError(f"{loc}unknown unit {label!r} in the record file{hint}; known units: "
+        raise RecordError(f"{loc}unknown unit {label!r} in the record file{case_hint(label)}; known units: "
                           f"{', '.join(sorted(u for u in UNITS if u))} (convert the record with 'jointid import' "
                           f"and a unit or scale)")
     factor, dim = UNITS[label]
-    kind = column_kind(name)
     if kind is not None and dim is not None and dim not in KINDS[kind]:
         raise RecordError(f"{loc}unit {label!r} in the record file is not a unit of a {kind}; "
                           f"expected one of {[u for u, (_, d) in UNITS.items() if d in KINDS[kind]]}")

@@ -252,7 +252,7 @@ def _motion_dimension(unit):
     """``"length"`` or ``"angle"`` for a unit of a DOF's motion (:mod:`jointid.io.units`), else None."""
     from .units import ANGLE, LENGTH, UNITS
 
-    dim = UNITS.get(str(unit).strip().lower(), (None, None))[1]
+    dim = UNITS.get(str(unit).strip(), (None, None))[1]  # case-sensitive, as SI prefixes are (mm, Mm)
     return "length" if dim == LENGTH else "angle" if dim == ANGLE else None
 
 

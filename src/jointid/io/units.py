@@ -93,15 +93,24 @@ def column_kind(column: str) -> str | None:
     return None
 
 
+def case_hint(label: str) -> str:
+    """`` (unit names are case-sensitive ...: did you mean 'mN'?)`` for a unit written in another case
+    than a known one, or ``""``; never a suggestion that turns a prefix M (mega) into m (milli) or back
+    (``MN`` is not a mis-typed ``mN``: the factor differs by 1e9)."""
+    key = str(label).strip()
+    other = [u for u in UNITS if u and u.lower() == key.lower() and u[:1] == key[:1]
+             or u and u.lower() == key.lower() and u[:1].lower() != "m"]
+    return (f" (unit names are case-sensitive, as SI prefixes are: m is milli, M mega; did you mean "
+            f"{' or '.join(repr(u) for u in other)}?)" if other else
+            " (unit names are case-sensitive, as SI prefixes are: m is milli, M mega)" if key[:1] == "M" else "")
+
+
 def check_column_unit(column: str, unit: str, context: str = "") -> None:
     """Raise a :class:`ManifestError` when ``unit`` is unknown or of another dimension than the
     column's kind (``context`` names the file and record)."""
     key = str(unit).strip()
     if key not in UNITS:
-        other_case = [u for u in UNITS if u and u.lower() == key.lower()]
-        hint = (f" (unit names are case-sensitive, as SI prefixes are: m is milli, M mega; did you mean "
-                f"{' or '.join(repr(u) for u in other_case)}?)" if other_case else "")
-        raise ManifestError(f"{context}channels.{column}: unknown unit {unit!r}{hint}; known: "
+        raise ManifestError(f"{context}channels.{column}: unknown unit {unit!r}{case_hint(key)}; known: "
                             f"{', '.join(u for u in UNITS if u)} (or give scale)")
     kind = column_kind(column)
     dim = UNITS[key][1]

@@ -32,7 +32,12 @@ from ..errors import ConvergenceError
 from ..numerics.aft import to_complex
 from .structure_hb import HBPoint
 
-__all__ = ["TimeIntegration", "integrate_from_point", "integrate_structure"]
+__all__ = ["TimeIntegration", "TooStiffError", "integrate_from_point", "integrate_structure"]
+
+
+class TooStiffError(ConvergenceError):
+    """The model needs more steps of the explicit integrator than the bound (its highest modes): the
+    check is not done, which says nothing against the harmonic balance."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,10 +143,11 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
     T = 2 * np.pi / w
     Psi, pf, Om, ze, km = engine.joint_shapes, engine.force_shape, engine.omega, engine.zeta, engine.k_model
     max_steps = STEPS_PER_MAX_STEP * n_periods * spp if max_steps is None else int(max_steps)
-    # DOP853 is stable for h Omega up to about 4 on an undamped mode: the fastest mode alone needs ~ Omega T / 4 steps
-    need = n_periods * float(Om.max()) * T / 4.0
+    # DOP853 is stable for h Omega up to about 4 on an undamped mode, and at rtol 1e-7 its steps on the
+    # fastest mode were measured at h Omega ~ 1.3: that mode alone needs ~ Omega T / 2 steps a period
+    need = n_periods * float(Om.max()) * T / 2.0
     if not need <= max_steps:
-        raise ConvergenceError(f"time integration at {w / (2 * np.pi):.6g} Hz not done: the highest mode "
+        raise TooStiffError(f"time integration at {w / (2 * np.pi):.6g} Hz not done: the highest mode "
                                f"({Om.max() / (2 * np.pi):.3g} Hz) needs about {need:.2g} steps of an explicit "
                                f"integrator over {n_periods} periods, more than the bound {max_steps}")
     laws = engine.laws
@@ -179,7 +185,7 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
         try:
             while solver.status == "running":
                 if n_steps >= max_steps:
-                    raise ConvergenceError(f"time integration at {w / (2 * np.pi):.6g} Hz stopped after {n_steps} "
+                    raise TooStiffError(f"time integration at {w / (2 * np.pi):.6g} Hz stopped after {n_steps} "
                                            f"steps at t = {solver.t / T:.3g} of {n_periods} periods (the bound): the "
                                            "model is too stiff for an explicit integration")
                 t_old, y_old = solver.t, solver.y.copy()
