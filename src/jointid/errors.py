@@ -24,6 +24,7 @@ __all__ = [
     "ConvergenceWarning",
     "where",
     "unknown_key_message",
+    "nearest_name",
 ]
 
 
@@ -40,16 +41,19 @@ def where(file=None, record=None, channel=None) -> str:
     return f"{head}: " if head else ""
 
 
-def unknown_key_message(key, valid, what="key") -> str:
-    """``"unknown key 'frequncy_hz'; did you mean 'frequency_hz'? (valid: ...)"``.
-
-    The nearest valid name is found with :func:`difflib.get_close_matches`.
-    """
+def nearest_name(key, valid):
+    """The valid name nearest to a misspelt ``key`` (:func:`difflib.get_close_matches`), or None."""
     import difflib
 
+    close = difflib.get_close_matches(str(key), [str(v) for v in valid], n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+def unknown_key_message(key, valid, what="key") -> str:
+    """``"unknown key 'frequncy_hz'; did you mean 'frequency_hz'? (valid: ...)"`` (:func:`nearest_name`)."""
     valid = sorted(str(v) for v in valid)
-    close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.6)
-    hint = f"; did you mean {close[0]!r}?" if close else ""
+    close = nearest_name(key, valid)
+    hint = f"; did you mean {close!r}?" if close else ""
     return f"unknown {what} {key!r}{hint} (valid: {', '.join(valid)})"
 
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import IdentificationError, JointidError, JointidWarning, where
+from ..errors import IdentificationError, JointidError, JointidWarning, nearest_name, where
 from ..identify.backbone import Backbone
 from ..identify.firstharmonic import (
     AMPLITUDE_UNIT,
@@ -54,12 +54,10 @@ def _raw_entry(campaign: Campaign, spec) -> dict:
 
 def _nearest(value, choices):
     """The valid choice nearest to a misspelt ``value`` (None when none is near)."""
-    import difflib
-
     if not isinstance(value, str):
         return None
-    close = difflib.get_close_matches(value, [str(c) for c in choices], n=1, cutoff=0.6)
-    return close[0] if close and close[0] != value else None
+    close = nearest_name(value, choices)
+    return close if close != value else None
 
 
 def _intended_kind(campaign: Campaign, spec):
