@@ -18,7 +18,7 @@ from jointid.simulate.synth import synthesize_record
 pytestmark = pytest.mark.filterwarnings("ignore::jointid.errors.JointidWarning")
 
 
-def _campaign(folder, bad_ringdown=False, label=None):
+def _campaign(folder, bad_ringdown=False, label=None, ringdown_time_unit=1.0):
     """Seed model in modal coordinates: stepped sine at two levels and one free decay."""
     m = seed_model()
     rng = np.random.default_rng(0)
@@ -39,7 +39,7 @@ def _campaign(folder, bad_ringdown=False, label=None):
     acc = -0.08 * sol.y[1] - 170.0**2 * sol.y[0] + 5e6 * sol.y[0] ** 3
     if bad_ringdown:
         acc[100] = np.nan
-    write_csv_record(folder / "ringdown/R.csv", t, {"force": np.zeros_like(t), "accel": acc})
+    write_csv_record(folder / "ringdown/R.csv", t / ringdown_time_unit, {"force": np.zeros_like(t), "accel": acc})
     records.append({"file": "ringdown/R.csv", "force_level": 2.0 if label is None else label(2.0), "preload": 1,
                     "excitation": "ringdown"})
     write_campaign(folder, "backbone test", records)
@@ -86,6 +86,17 @@ def test_bad_ringdown_record_does_not_lose_the_backbones(tmp_path):
     assert p.stepped is not None and not p.ringdown
     (key, msg), = p.errors.items()
     assert "ringdown/R.csv" in msg and "accel" in msg
+
+
+def test_a_ringdown_far_from_the_identified_mode_is_left_out_and_said(tmp_path):
+    """A ring-down whose time column is in ms rings at 1/1000 of the mode the stepped sines identify: it is
+    not a backbone of that mode (it was drawn at 0.027 Hz beside a 27 Hz model, exit 0)."""
+    _campaign(tmp_path, ringdown_time_unit=1e-3)
+    res = identify_campaign(tmp_path, repredict=False)
+    p = res.backbones[1]
+    assert p.stepped is not None and not p.ringdown
+    (key, msg), = p.errors.items()
+    assert key.startswith("record ") and "ringdown/R.csv" in msg and "0.000995 times" in msg and "in ms" in msg, msg
 
 
 def test_force_levels_given_as_text_labels_keep_the_backbones(tmp_path):

@@ -322,7 +322,12 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
                 continue
             try:
                 d = ringdown_decay(s, structure, **fit_options)
-                rds.append(d.backbone(label=f"{s.file}"))
+                rd = d.backbone(label=f"{s.file}")
+                off = _off_the_mode(rd, model_bb if model_bb is not None else stepped)
+                if off:
+                    errors[f"record {s.index}"] = f"{where(s.file, s.index)}{off}"
+                    continue
+                rds.append(rd)
             except JointidError as exc:
                 errors[f"record {s.index}"] = str(exc)
             except (np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:  # fails this record only
@@ -342,6 +347,30 @@ def backbone_from_campaign(result, campaign=None, *, joint_laws=True, direction=
                     warnings.warn(f"preload {p}: joint laws not fitted ({exc})", JointidWarning, stacklevel=2)
         preloads.append(pb)
     return CampaignBackbones(tuple(preloads))
+
+
+#: A ring-down whose frequency is further than this factor from its preload's identified mode is not used.
+RINGDOWN_FREQUENCY_FACTOR = 1.5
+
+
+def _off_the_mode(rd, reference) -> str:
+    """Why a ring-down's backbone ``rd`` is not of the mode ``reference`` (the preload's model or stepped-sine
+    backbone) identifies: its median frequency further than :data:`RINGDOWN_FREQUENCY_FACTOR` from the mode's
+    (another mode, or a time column in another unit); ``""`` when it is near, or nothing to compare with."""
+    if reference is None or not len(rd) or not len(reference):
+        return ""
+    f_rd = np.nanmedian(np.asarray(rd.omega, float)) / (2 * np.pi)
+    f_ref = np.nanmedian(np.asarray(reference.omega, float)) / (2 * np.pi)
+    if not (np.isfinite(f_rd) and np.isfinite(f_ref) and f_rd > 0 and f_ref > 0):
+        return ""
+    ratio = f_rd / f_ref
+    if 1 / RINGDOWN_FREQUENCY_FACTOR <= ratio <= RINGDOWN_FREQUENCY_FACTOR:
+        return ""
+    hint = " (1000 times off: a time column in ms?)" if abs(np.log10(ratio) + 3) < 0.1 or abs(np.log10(ratio) - 3) < 0.1 \
+        else ""
+    return (f"the free decay rings at {f_rd:.4g} Hz, {ratio:.3g} times the frequency of the mode the preload's "
+            f"records identify ({f_ref:.4g} Hz){hint}: another mode or another time unit, not a backbone of this "
+            "mode; left out")
 
 
 MAX_LAW_ORDER = 10  # the largest damping order identify fits (IdentifySettings.damping_order)
