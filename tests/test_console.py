@@ -82,3 +82,22 @@ def test_natural_term_algebra_on_the_command_line(campaign, tmp_path, capsys):
     code = main(["identify", str(campaign), "--out", str(tmp_path / "b"), "--no-figures", "--terms", "q + qq^3"])
     err = capsys.readouterr().err
     assert code == EXIT_INPUT and "qq^3" in err
+
+
+
+def test_a_preload_whose_model_cannot_be_fitted_says_why_naming_it_once(tmp_path):
+    """One record: its group is identified, the preload's model (laws over its records) cannot be, and
+    results.json says why, naming the preload once (it read "preload 120: preload 120: ...")."""
+    import json
+
+    from jointid.app.paper_example import paper_config
+    from jointid.app.synthesis import load_simulation_config, simulate_campaign
+    from jointid.cli import main
+
+    cfg = paper_config(n_frequencies=1, fs=2000.0, periods=15, noise=0.01, seed=3)
+    cfg["excitation"]["force_levels"] = cfg["excitation"]["force_levels"][:1]
+    camp = simulate_campaign(load_simulation_config(cfg), tmp_path / "camp")
+    main(["identify", str(camp), "--out", str(tmp_path / "res"), "--quiet", "--figures", "none", "--no-reprediction"])
+    models = json.loads((tmp_path / "res" / "results.json").read_text())["models"]
+    errors = [m["error"] for m in models if m.get("error")]
+    assert errors and all("needs at least" in e and e.count("preload ") == 1 for e in errors), errors

@@ -269,7 +269,8 @@ def _preload_models(outcomes, use, preloads, settings):
             notes += [(w, IllConditionedWarning) for w in models[preload].warnings]
         except IdentificationError as exc:
             models[preload] = None
-            errors[preload] = f"preload {preload}: {exc}"
+            text = str(exc)  # the fit's context already names the preload
+            errors[preload] = text if text.startswith(f"preload {preload}: ") else f"preload {preload}: {text}"
     return models, errors, notes
 
 
