@@ -382,3 +382,27 @@ def test_a_random_force_with_measurement_noise_keeps_its_band_and_is_not_flagged
     # the response of another excitation is still flagged over that band
     _, other, _ = ssignal.lsim(sys, ssignal.filtfilt(b, a, rng.standard_normal(n)), t)
     assert [f.name for f in random_flags(noisy[0], other, fs, (lo, hi))] == ["random_coherence"]
+
+
+def test_a_multisine_response_still_settling_is_flagged_a_steady_one_is_not():
+    """A lightly damped mode (zeta 0.2 %, 27 Hz: time constant 2.9 s) driven by a 1 s multisine from rest:
+    the periods after the first still carry the start-up transient (flagged multisine_transient); the same
+    record after 30 s of settling is steady, and 1 % noise alone gives a ratio near 1."""
+    from scipy import signal as ssignal
+
+    from jointid.signal.broadband import multisine_transient_flags
+
+    fs, n_per = 1000.0, 1000
+    rng = np.random.default_rng(4)
+    k = np.arange(20, 36)
+    one = sum(np.cos(2 * np.pi * kk * np.arange(n_per) / n_per + rng.uniform(0, 2 * np.pi)) for kk in k)
+    w0 = 2 * np.pi * 27.0
+    sys = ssignal.lti([1.0, 0.0, 0.0], [1.0, 2 * 0.002 * w0, w0**2])
+    u = np.tile(one, 35)
+    _, y, _ = ssignal.lsim(sys, u, np.arange(u.size) / fs)
+    y = y + 0.01 * np.std(y) * rng.standard_normal(y.size)
+    settling = y[:5 * n_per]  # periods 2-5 used: still settling
+    steady = y[-5 * n_per:]
+    (flag,) = multisine_transient_flags(settling, n_per, channel="acceleration")
+    assert flag.name == "multisine_transient" and flag.values["ratio"] > 2.0
+    assert multisine_transient_flags(steady, n_per) == []

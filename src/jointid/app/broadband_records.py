@@ -34,7 +34,13 @@ import numpy as np
 from ..errors import IdentificationError, JointidError, JointidWarning, RecordError, where
 from ..identify.broadband import BroadbandForceStateMapping
 from ..io.campaign import read_record
-from ..signal.broadband import multisine_flags, periodic_states, random_flags, random_states
+from ..signal.broadband import (
+    multisine_flags,
+    multisine_transient_flags,
+    periodic_states,
+    random_flags,
+    random_states,
+)
 from ..signal.checks import Flag
 
 __all__ = ["BROADBAND", "BroadbandGroup", "split_broadband", "identify_broadband", "power_band"]
@@ -277,7 +283,7 @@ def record_flags(spec, raw) -> list:
     t, u, y, kind, fs = raw
     if spec.excitation == "multisine":
         n_per, _ = _periods(spec, t.size, fs)
-        return multisine_flags(u, n_per)
+        return multisine_flags(u, n_per) + multisine_transient_flags(y, n_per, channel=kind)
     band = random_band(u, fs)
     return random_flags(u, y, fs, band, channels=("force", kind)) if band[0] < band[1] else []
 

@@ -71,6 +71,7 @@ __all__ = [
     "detect_period",
     "find_periodic_segments",
     "average_periods",
+    "multisine_transient_flags",
     "excited_lines",
     "band_lines",
     "band_weights",
@@ -801,6 +802,39 @@ def multisine_flags(u, n_period: int, channel: str = "force") -> list:
                                              f"{MIN_LINES} for a broadband fit): a plain sine, not a multisine",
                           {"excited_lines": int(lines.size)}))
     return flags
+
+
+#: A multisine response whose first kept period differs from the last by more than this many times the
+#: last two periods' difference is still settling (noise alone gives about 1).
+TRANSIENT_RATIO = 2.0
+#: ... and by more than this share of the response power (a settling too small to bias the fit is let be).
+TRANSIENT_SHARE = 1e-3
+
+
+def multisine_transient_flags(y, n_period: int, channel: str = "response") -> list:
+    """``multisine_transient``: the response of a multisine record still changes from period to period over
+    the whole periods after the first (a start-up transient of a lightly damped mode outlasting the dropped
+    period): the first of them differs from the last by more than :data:`TRANSIENT_RATIO` times the last two's
+    difference and by more than :data:`TRANSIENT_SHARE` of the response power.  Needs three such periods."""
+    from .checks import Flag
+
+    y = np.asarray(y, float)
+    n_per = int(n_period)
+    use = (y.size // n_per - 1) if n_per > 0 else 0
+    if use < 3:
+        return []
+    seg = y[y.size - use * n_per:].reshape(use, n_per)
+    first, last = seg[0] - seg[-1], seg[-2] - seg[-1]
+    power = float(np.sum((seg - seg.mean()) ** 2)) / use
+    ratio = float(np.linalg.norm(first) / max(np.linalg.norm(last), np.finfo(float).tiny))
+    share = float(first @ first) / power if power > 0 else 0.0
+    if ratio > TRANSIENT_RATIO and share > TRANSIENT_SHARE:
+        return [Flag("multisine_transient", f"the {channel} still settles over the {use} periods used: the first "
+                                            f"differs from the last by {ratio:.3g} times the last two's difference "
+                                            f"({100 * share:.3g} % of its power): a start-up transient; record more "
+                                            "periods before the ones kept",
+                     {"ratio": ratio, "share": share, "periods": use})]
+    return []
 
 
 def random_flags(u, y, fs, band, channels=("force", "response")) -> list:
