@@ -57,3 +57,33 @@ def test_physical_campaign_bad_structure_and_columns(tmp_path):
     write_campaign(tmp_path, "bad", [{"file": "r.csv"}], coordinates="physical", structure=outside)
     with pytest.raises(StructureError, match="accel_99"):
         identify_campaign(tmp_path)
+
+
+def test_swapped_sensors_are_flagged_by_the_modal_residual(tmp_path):
+    """Every record with its two accelerometer columns swapped: the mode shape at the sensors explains 40 %
+    of the accelerations; each record is flagged modal_residual (it was identified with k3 2.5x off and no
+    flag), the correct campaign is not."""
+    cfg = paper_config(n_frequencies=5, noise=0.0, periods=12)
+    modal = simulate_campaign(load_simulation_config(cfg), tmp_path / "modal")
+    structure = Structure.from_mapping(STRUCTURE, source="test")
+    phi_f = structure.phi_force[0]
+    phi_s = dict(zip(structure.sensors, structure.phi_sensors[:, 0]))
+    for name, swap in (("right", False), ("swapped", True)):
+        entries = []
+        for spec in load_campaign(modal).records:
+            rec = read_record(spec)
+            a30, a42 = phi_s["accel_30"] * rec.channels["accel"], phi_s["accel_42"] * rec.channels["accel"]
+            if swap:
+                a30, a42 = a42, a30
+            write_csv_record(tmp_path / name / spec.file, rec.time,
+                             {"force": rec.channels["force"] / phi_f, "accel_30": a30, "accel_42": a42})
+            entries.append({"file": spec.file, "frequency_hz": spec.frequency_hz, "force_level": spec.force_level,
+                            "preload": spec.preload})
+        write_campaign(tmp_path / name, name, entries, coordinates="physical", structure=STRUCTURE)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = identify_campaign(tmp_path / name, n_harmonics=5, repredict=False)
+        flagged = [r for r in res.records if any(f.name == "modal_residual" for f in r.flags)]
+        assert len(flagged) == (len(res.records) if swap else 0), name
+        if swap:
+            assert all(0.3 < r.modal_residual < 0.9 for r in res.records)
