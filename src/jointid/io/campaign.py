@@ -557,13 +557,9 @@ def _read_other(path: Path, spec: RecordSpec) -> dict:
         raise RecordError(f"{where(spec.file, spec.index)}cannot read {suffix} files: {exc}") from exc
     ch = reader(path)
     time_unit = str(ch.meta.get("time_units", "") or "").strip()
-    if time_unit.lower() in ("", "s", "sec", "secs", "second", "seconds"):
-        time_factor = 1.0
-    elif time_unit == "ms":
-        time_factor = 1e-3
-    else:
-        raise RecordError(f"{where(spec.file, spec.index, 'time')}unknown time unit {time_unit!r} in the record "
-                          f"file; expected s or ms (convert the record with 'jointid import')")
+    # spellings of the second outside the table of units, then the table (s, ms; another unit is refused)
+    time_factor = 1.0 if time_unit.lower() in ("s", "sec", "secs", "second", "seconds") else \
+        _si_factor("time", time_unit, spec)
     cols = {"time": np.asarray(ch.time, float) * time_factor}
     for name, values in ch.data.items():
         factor = _si_factor(name, ch.units.get(name, ""), spec)
@@ -573,24 +569,19 @@ def _read_other(path: Path, spec: RecordSpec) -> dict:
 
 
 def _si_factor(name: str, unit, spec: RecordSpec) -> float:
-    """Factor from the unit label a record file gives a channel to SI (jointid.io.units); an unknown
-    label, one of another kind than the channel (``accel`` in ``N``) or a mega prefix is refused."""
-    from .units import KINDS, UNITS, case_hint, column_kind
+    """Factor from the unit label a record file gives a channel to SI (:func:`jointid.io.units.unit_problem`:
+    an unknown label or one of another kind than the channel, ``accel`` in ``N``, is refused); a label
+    outside the table on a channel not read by its kind (a temperature, a current) is left as it is."""
+    from .units import UNITS, column_kind, unit_problem
 
     label = str(unit or "").strip()
-    loc = where(spec.file, spec.index, name)
-    kind = column_kind(name)
-    if label not in UNITS and kind is None:
-        return 1.0  # a channel jointid does not read by its name (a temperature, a current): left as it is
-    if label not in UNITS:  # names are case-sensitive, as SI prefixes are (mN, MN)
-        raise RecordError(f"{loc}unknown unit {label!r} in the record file{case_hint(label)}; known units: "
-                          f"{', '.join(sorted(u for u in UNITS if u))} (convert the record with 'jointid import' "
-                          f"and a unit or scale)")
-    factor, dim = UNITS[label]
-    if kind is not None and dim is not None and dim not in KINDS[kind]:
-        raise RecordError(f"{loc}unit {label!r} in the record file is not a unit of a {kind}; "
-                          f"expected one of {[u for u, (_, d) in UNITS.items() if d in KINDS[kind]]}")
-    return float(factor)
+    if label not in UNITS and column_kind(name) is None:
+        return 1.0
+    problem = unit_problem(name, label)
+    if problem:
+        raise RecordError(f"{where(spec.file, spec.index, name)}{problem} (the unit label in the record file; "
+                          "convert the record with 'jointid import' and a unit or scale)")
+    return float(UNITS[label][0])
 
 
 def _toml_value(v) -> str:

@@ -159,9 +159,10 @@ def _read_hdf5_datasets(path: Path, channels: dict, fs=None, time=None) -> Chann
                                       "expected one dimension")
                 data[out] = x
             lengths = {out: x.size for out, x in data.items()}
-            if len(set(lengths.values())) > 1:
-                (o1, n1), (o2, n2) = next(iter(lengths.items())), next(
-                    (o, n) for o, n in lengths.items() if n != next(iter(lengths.values())))
+            o1, n1 = next(iter(lengths.items()), (None, None))
+            other = [(o, n) for o, n in lengths.items() if n != n1]
+            if other:
+                o2, n2 = other[0]
                 base = (f"the time dataset {time!r}" if time is not None else
                         f"fs = {fs!r} Hz" if fs is not None else "no time base")
                 raise RecordError(f"{path} [channel {o2!r}]: dataset {channels[o2]!r} has {n2} samples, but "

@@ -13,7 +13,8 @@ import math
 
 from ..errors import ManifestError
 
-__all__ = ["UNITS", "SI_NAMES", "KINDS", "unit_factor", "unit_dimension", "column_kind", "check_column_unit"]
+__all__ = ["UNITS", "SI_NAMES", "KINDS", "unit_factor", "unit_dimension", "column_kind", "case_hint", "unit_problem",
+           "check_column_unit"]
 
 MASS, LENGTH, TIME, CURRENT = (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)
 NONE = (0, 0, 0, 0)
@@ -98,24 +99,31 @@ def case_hint(label: str) -> str:
     than a known one, or ``""``; never a suggestion that turns a prefix M (mega) into m (milli) or back
     (``MN`` is not a mis-typed ``mN``: the factor differs by 1e9)."""
     key = str(label).strip()
-    other = [u for u in UNITS if u and u.lower() == key.lower() and u[:1] == key[:1]
-             or u and u.lower() == key.lower() and u[:1].lower() != "m"]
+    other = [u for u in UNITS if u and u.lower() == key.lower() and (u[:1] == key[:1] or u[:1].lower() != "m")]
     return (f" (unit names are case-sensitive, as SI prefixes are: m is milli, M mega; did you mean "
             f"{' or '.join(repr(u) for u in other)}?)" if other else
             " (unit names are case-sensitive, as SI prefixes are: m is milli, M mega)" if key[:1] == "M" else "")
 
 
-def check_column_unit(column: str, unit: str, context: str = "") -> None:
-    """Raise a :class:`ManifestError` when ``unit`` is unknown or of another dimension than the
-    column's kind (``context`` names the file and record)."""
+def unit_problem(column: str, unit: str) -> str:
+    """What is wrong with ``unit`` for the column named ``column``, or ``""``: an unknown name (with
+    :func:`case_hint` and the known names), or a dimension other than the column's kind allows."""
     key = str(unit).strip()
     if key not in UNITS:
-        raise ManifestError(f"{context}channels.{column}: unknown unit {unit!r}{case_hint(key)}; known: "
-                            f"{', '.join(u for u in UNITS if u)} (or give scale)")
+        return f"unknown unit {unit!r}{case_hint(key)}; known: {', '.join(u for u in UNITS if u)}"
     kind = column_kind(column)
     dim = UNITS[key][1]
     if kind is None or dim is None or dim in KINDS[kind]:
-        return
+        return ""
     allowed = [u for u, (_, d) in UNITS.items() if d in KINDS[kind]]
-    raise ManifestError(f"{context}channels.{column}: unit {unit!r} is a {_DIM_NAMES.get(dim, str(dim))}, but "
-                        f"column {column!r} holds a {kind}; units of a {kind}: {', '.join(allowed)}")
+    return (f"unit {unit!r} is a {_DIM_NAMES.get(dim, str(dim))}, but column {column!r} holds a {kind}; units of "
+            f"a {kind}: {', '.join(allowed)}")
+
+
+def check_column_unit(column: str, unit: str, context: str = "") -> None:
+    """Raise a :class:`ManifestError` when ``unit`` is unknown or of another dimension than the
+    column's kind (:func:`unit_problem`; ``context`` names the file and record)."""
+    problem = unit_problem(column, unit)
+    if problem:
+        scale = " (or give scale)" if str(unit).strip() not in UNITS else ""
+        raise ManifestError(f"{context}channels.{column}: {problem}{scale}")

@@ -148,8 +148,8 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
     need = n_periods * float(Om.max()) * T / 2.0
     if not need <= max_steps:
         raise TooStiffError(f"time integration at {w / (2 * np.pi):.6g} Hz not done: the highest mode "
-                               f"({Om.max() / (2 * np.pi):.3g} Hz) needs about {need:.2g} steps of an explicit "
-                               f"integrator over {n_periods} periods, more than the bound {max_steps}")
+                            f"({Om.max() / (2 * np.pi):.3g} Hz) needs about {need:.2g} steps of an explicit "
+                            f"integrator over {n_periods} periods, more than the bound {max_steps}")
     laws = engine.laws
     H = point.n_harmonics if n_harmonics is None else int(n_harmonics)
     Fc = np.asarray(point.force, float)
@@ -186,8 +186,8 @@ def integrate_from_point(engine, point: HBPoint, n_periods=25, steps_per_period=
             while solver.status == "running":
                 if n_steps >= max_steps:
                     raise TooStiffError(f"time integration at {w / (2 * np.pi):.6g} Hz stopped after {n_steps} "
-                                           f"steps at t = {solver.t / T:.3g} of {n_periods} periods (the bound): the "
-                                           "model is too stiff for an explicit integration")
+                                        f"steps at t = {solver.t / T:.3g} of {n_periods} periods (the bound): the "
+                                        "model is too stiff for an explicit integration")
                 t_old, y_old = solver.t, solver.y.copy()
                 solver.step()
                 if solver.status == "failed":
