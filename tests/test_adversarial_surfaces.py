@@ -441,6 +441,8 @@ def test_backbone_output_is_one_set_never_a_mix_nor_the_users_files(results_json
     path.write_text(json.dumps(results_json))
     code, err = _run(["backbone", path, "--out", user, "--quiet"], capsys)
     assert code == 2 and str(user) in err and (user / "backbone_simulated.png").read_text() == "my notes", err
+    code, err = _run(["backbone", path, "--out", tmp_path, "--quiet"], capsys)  # the folder of its input
+    assert code == 2 and path.is_file() and (user / "backbone_simulated.png").is_file(), err
 
     out = tmp_path / "bb"
     assert _run(["backbone", path, "--out", out, "--quiet"], capsys)[0] == 0
